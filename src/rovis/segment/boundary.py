@@ -1,0 +1,239 @@
+"""Boundary segmentation of one image (paper Fig. 2, left column).
+
+``evaluate`` runs one T_H of the chain — Canny → Hough with votes → cover quadrilaterals —
+and finds the best T_HG for it (the controller's inner loop, exactly and cheaply: see
+:func:`evaluate`). ``finish`` refines the chosen covers' sides to sub-pixel accuracy and
+orders their corners (eq. 1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from rovis.segment.edges import Gradients, canny
+from rovis.segment.lines import Lines, hough_lines, intersect, refine_segment, support_profile
+from rovis.segment.quads import CoverSelection, QuadConfig, Quads, candidate_quads, order_corners
+from rovis.segment.quality import AS_DESCRIBED, quality
+
+
+@dataclass(frozen=True)
+class SegmentConfig:
+    """Tuning of the boundary segmentation and its controller.
+
+    Attributes
+    ----------
+    n_max : int
+        N_max of eq. 2: the most Hough lines allowed in the ROI.
+    T_H_range : (float, float)
+        Canny high threshold search range, on the L2 Sobel magnitude (0–1442 for 8 bit).
+    T_HG_min : int
+        Lowest Hough accumulator threshold tried (votes = edge pixels on a line).
+    quality_sign : {-1, +1}
+        Exponent sign of eq. 2 (see :mod:`rovis.segment.quality`).
+    open_T_H, open_T_HG : float, int
+        The open loop's fixed thresholds (tuned at 500 lx).
+    max_inner : int
+        Most T_HG values the inner loop evaluates per T_H.
+    max_edge_frac : float
+        An edge map denser than this (of the ROI) is noise: its Hough lines would exceed
+        N_max anyway, so y = 0 without running Hough (saves the most expensive evaluations).
+    coarse_steps, refine_steps : int
+        Outer-loop search: a log-spaced grid, then halving steps around the best.
+    warm_step : float
+        Multiplicative T_H step of a warm-started (sequence) search.
+    """
+
+    n_max: int = 40
+    T_H_range: tuple[float, float] = (12.0, 480.0)
+    T_HG_min: int = 30
+    quality_sign: int = AS_DESCRIBED
+    open_T_H: float = 100.0
+    open_T_HG: int = 60
+    coarse_steps: int = 5
+    refine_steps: int = 2
+    warm_step: float = 1.25
+    max_inner: int = 12
+    max_edge_frac: float = 0.08
+    quads: QuadConfig = field(default_factory=QuadConfig)
+
+
+@dataclass(frozen=True, eq=False)
+class Evaluation:
+    """One T_H of the outer loop with its best T_HG."""
+
+    T_H: float
+    T_HG: int
+    y: float
+    lines: Lines  # the lines above T_HG, strongest first
+    covers: Quads  # the selected cover candidates at T_HG
+    inner_iterations: int
+
+
+@dataclass(frozen=True, eq=False)
+class Segmentation:
+    """Book covers found in one image.
+
+    Attributes
+    ----------
+    corners : ndarray, shape (K, 4, 2), float64
+        Sub-pixel cover corners, eq. 1 order (top-left first, clockwise on screen), in the
+        pixel frame of the image that was segmented.
+    coarse : ndarray, shape (K, 4, 2)
+        The same corners from Hough line intersections alone (before refinement).
+    support : ndarray, shape (K,)
+        Mean fraction of each cover's sides covered by edge pixels.
+    lines : Lines
+        The Hough lines above T_HG (for overlays).
+    T_H, T_HG, y : the thresholds used and the quality they reached (eq. 2)
+    iterations : int
+        Evaluations of the chain (outer × inner loop steps; 1 for the open loop).
+    """
+
+    corners: NDArray[np.float64]
+    coarse: NDArray[np.float64]
+    support: NDArray[np.float64]
+    lines: Lines
+    T_H: float
+    T_HG: int
+    y: float
+    iterations: int
+
+    def __len__(self) -> int:
+        return len(self.corners)
+
+    @classmethod
+    def empty(cls, T_H: float = 0.0, T_HG: int = 0, iterations: int = 0) -> Segmentation:
+        return cls(np.zeros((0, 4, 2)), np.zeros((0, 4, 2)), np.zeros(0), Lines.empty(), T_H,
+                   T_HG, 0.0, iterations)
+
+
+def roi_area(grad: Gradients) -> float:
+    """A_ROI of eq. 2, pixels."""
+    if grad.mask is None:
+        return float(grad.shape[0] * grad.shape[1])
+    return float(np.count_nonzero(grad.mask))
+
+
+def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | None = None,
+             T_L: float | None = None, area: float | None = None) -> Evaluation:
+    """Run Canny → Hough → quads at one T_H and pick T_HG (or use the one given).
+
+    The inner loop is exact and cheap: one Hough pass at the lowest threshold gives every
+    line with its votes; a quad exists for every T_HG up to its weakest side's votes. With
+    e^{-N/N_max}, y only grows with T_HG between those breakpoints, so its maximum is at
+    one of them; with the printed e^{+N/N_max} it may also sit at the lowest T_HG with
+    N ≤ N_max. Only those candidates are evaluated (at most ``cfg.max_inner``).
+    """
+    area = roi_area(grad) if area is None else area
+    edges = canny(grad, T_H, T_L)
+    low = cfg.T_HG_min if T_HG is None else int(T_HG)
+    if T_HG is None and cv2.countNonZero(edges) > cfg.max_edge_frac * area:
+        return Evaluation(T_H, low, 0.0, Lines.empty(), Quads.empty(), 1)
+    lines = hough_lines(edges, low, max_lines=cfg.n_max + 1, box=grad.box)
+    if len(lines) > cfg.n_max:  # above the (N_max+1)-th line's votes N ≤ N_max holds
+        low = max(low, int(lines.votes[cfg.n_max]) + 1)
+        lines = lines.take(lines.votes >= low)
+    if len(lines) == 0:
+        return Evaluation(T_H, low, 0.0, lines, Quads.empty(), 1)
+    quads = candidate_quads(lines, support_profile(lines, edges, grad), grad.shape, area, cfg.quads)
+    selection = CoverSelection(quads, cfg.quads)
+    if T_HG is not None:
+        candidates = [low]
+    else:
+        candidates = sorted({int(v) for v in selection.votes if v >= low} | {low}, reverse=True)
+        if len(candidates) > cfg.max_inner:
+            pick = np.linspace(0, len(candidates) - 1, cfg.max_inner).round().astype(int)
+            candidates = [candidates[i] for i in sorted(set(pick))]
+    best: Evaluation | None = None
+    for t in candidates:  # inner loop over T_HG, from the highest
+        n = int(np.count_nonzero(lines.votes >= t))
+        covers = selection.at(t)
+        y = quality(n, covers.n_f, area, cfg.n_max, sign=cfg.quality_sign)
+        if best is None or y > best.y:
+            best = Evaluation(T_H, t, y, lines.take(lines.votes >= t), covers, len(candidates))
+    assert best is not None
+    return best
+
+
+def finish(grad: Gradients, ev: Evaluation, iterations: int) -> Segmentation:
+    """Refine the chosen covers to sub-pixel corners and order them (eq. 1)."""
+    if len(ev.covers) == 0:
+        return Segmentation(np.zeros((0, 4, 2)), np.zeros((0, 4, 2)), np.zeros(0), ev.lines,
+                            ev.T_H, ev.T_HG, ev.y, iterations)
+    refined, coarse = [], []
+    for quad in ev.covers.corners:
+        refined.append(order_corners(refine_quad(grad, quad)))
+        coarse.append(order_corners(quad))
+    return Segmentation(np.array(refined), np.array(coarse), ev.covers.support.mean(axis=1),
+                        ev.lines, ev.T_H, ev.T_HG, ev.y, iterations)
+
+
+def refine_quad(grad: Gradients, corners: NDArray[np.float64], *,
+                down: tuple[float, float] = (0.0, 1.0)) -> NDArray[np.float64]:
+    """Sub-pixel corners (4, 2): each side refit to the gradient, neighbours intersected.
+
+    A book seen from above and in front shows its page block below the cover's near sides,
+    so a Hough line there may sit on the block's outer edge. On sides facing the camera
+    (outward normal along ``down``, the image direction of the world's vertical) the cover
+    edge is looked for inside the first one (:func:`cover_edge_offset`). A side that cannot
+    be refit keeps its Hough position.
+    """
+    center = corners.mean(axis=0)
+    sides = []
+    for s in range(4):
+        a, b = corners[s], corners[(s + 1) % 4]
+        d = (b - a) / np.linalg.norm(b - a)
+        n_in = np.array([-d[1], d[0]])
+        if n_in @ (center - a) < 0:
+            n_in = -n_in
+        if -n_in @ np.asarray(down) > 0.05:
+            shift = cover_edge_offset(grad, a, b, n_in)
+            a, b = a + shift * n_in, b + shift * n_in
+        fit = refine_segment(grad, a, b)
+        sides.append(fit if fit is not None else (0.5 * (a + b), d))
+    out = corners.copy()
+    for s in range(4):  # corner s joins side s-1 and side s
+        p = intersect(*sides[s - 1], *sides[s])
+        if p is not None and np.linalg.norm(p - corners[s]) < 40.0:
+            out[s] = p
+    return out
+
+
+def cover_edge_offset(grad: Gradients, a: NDArray[np.float64], b: NDArray[np.float64],
+                      n_in: NDArray[np.float64], *, max_px: float = 40.0,
+                      min_ratio: float = 0.15, min_consistency: float = 0.6) -> float:
+    """How far inside side ``a``–``b`` (px, along ``n_in``) the cover edge lies; 0 if here.
+
+    The derivative across the side is sampled along it at offsets from −3 px (outside) to
+    ``max_px`` inside (at most a third of the way across the quad). An inner edge counts
+    when the median profile peaks there with at least ``min_ratio`` of the outer edge's
+    strength, and at least ``min_consistency`` of the samples along the side agree.
+    """
+    length = float(np.linalg.norm(b - a))
+    if length < 20:
+        return 0.0
+    d = (b - a) / length
+    t = np.arange(0.15 * length, 0.85 * length, 2.0)
+    offsets = np.arange(-3.0, max_px + 0.5, 1.0)
+    base = a + t[:, None] * d
+    gx, gy = grad.sample(base[:, None, 0] + offsets[None, :] * n_in[0],
+                         base[:, None, 1] + offsets[None, :] * n_in[1])
+    g = np.abs(gx * n_in[0] + gy * n_in[1])  # (samples, offsets)
+    profile = np.median(g, axis=0)
+    outer = int(np.argmax(profile[:7]))  # the detected edge, within ±3 px of the line
+    peak = profile[outer]
+    if peak <= 0:
+        return 0.0
+    inner = np.arange(outer + 2, len(offsets) - 1)
+    is_max = (profile[inner] >= profile[inner - 1]) & (profile[inner] >= profile[inner + 1])
+    strong = inner[is_max & (profile[inner] >= min_ratio * peak)]
+    for k in strong:  # the nearest qualifying inner edge
+        valley = profile[outer:k].min()
+        level = valley + 0.5 * (profile[k] - valley)  # half way up the inner peak
+        if np.mean(g[:, k - 1:k + 2].max(axis=1) >= level) >= min_consistency:
+            return float(offsets[k] - offsets[outer])
+    return 0.0

@@ -1,0 +1,79 @@
+"""The closed-loop cascade controller (paper §3.B, Fig. 4).
+
+Outer loop: the Canny threshold T_H, searched on a log scale to maximise the segmentation
+quality y (eq. 2). Inner loop: the Hough threshold T_HG for each T_H, solved exactly inside
+:func:`rovis.segment.boundary.evaluate`. In a sequence the search starts from the previous
+frame's optimum and only climbs locally, falling back to the full search when the scene has
+changed so much that the local optimum is empty.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rovis.segment.boundary import Evaluation, SegmentConfig, Segmentation, evaluate, finish, roi_area
+from rovis.segment.edges import Gradients
+
+
+class CascadeController:
+    """Sets T_H (outer) and T_HG (inner) by maximising eq. 2's y; remembers its optimum.
+
+    Parameters
+    ----------
+    cfg : SegmentConfig
+    warm_start : bool
+        Start each image's search from the previous image's optimum (sequences).
+    """
+
+    def __init__(self, cfg: SegmentConfig | None = None, *, warm_start: bool = True) -> None:
+        self.cfg = cfg or SegmentConfig()
+        self.warm_start = warm_start
+        self.last_T_H: float | None = None
+
+    def reset(self) -> None:
+        """Forget the previous optimum (next image gets a full search)."""
+        self.last_T_H = None
+
+    def segment(self, grad: Gradients) -> Segmentation:
+        """Search T_H and T_HG for one image, then refine the best covers."""
+        area = roi_area(grad)
+        seen: dict[float, Evaluation] = {}
+
+        def run(log_T_H: float) -> Evaluation:
+            lo, hi = np.log(self.cfg.T_H_range[0]), np.log(self.cfg.T_H_range[1])
+            key = round(float(np.clip(log_T_H, lo, hi)), 3)
+            if key not in seen:
+                seen[key] = evaluate(grad, float(np.exp(key)), self.cfg, area=area)
+            return seen[key]
+
+        best = None
+        if self.warm_start and self.last_T_H is not None:
+            best = self._climb(run, np.log(self.last_T_H))
+        if best is None or best.y <= 0:
+            best = self._full_search(run)
+        self.last_T_H = best.T_H if best.y > 0 else self.last_T_H
+        iterations = sum(ev.inner_iterations for ev in seen.values())
+        return finish(grad, best, iterations)
+
+    def _full_search(self, run) -> Evaluation:  # type: ignore[no-untyped-def]
+        lo, hi = np.log(self.cfg.T_H_range[0]), np.log(self.cfg.T_H_range[1])
+        grid = np.linspace(lo, hi, self.cfg.coarse_steps)
+        best = max((run(u) for u in grid), key=lambda ev: ev.y)
+        step = (grid[1] - grid[0]) / 2 if len(grid) > 1 else 0.0
+        for _ in range(self.cfg.refine_steps):
+            u = np.log(best.T_H)
+            best = max((best, run(u - step), run(u + step)), key=lambda ev: ev.y)
+            step /= 2
+        return best
+
+    def _climb(self, run, u0: float) -> Evaluation:  # type: ignore[no-untyped-def]
+        step = np.log(self.cfg.warm_step)
+        best = run(u0)
+        for direction in (+1, -1):
+            u = np.log(best.T_H)
+            while True:
+                trial = run(u + direction * step)
+                if trial.y <= best.y:
+                    break
+                best, u = trial, u + direction * step
+        return best

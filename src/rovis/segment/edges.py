@@ -1,0 +1,94 @@
+"""Edge stage (paper §3.A): Sobel gradients once per image, Canny for any T_H from them."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+CANNY_LOW_RATIO = 0.4  # T_L = 0.4 · T_H (paper §3.A)
+
+
+@dataclass(frozen=True, eq=False)
+class Gradients:
+    """Sobel derivatives of one (smoothed) image, reused for every threshold.
+
+    Attributes
+    ----------
+    dx, dy : ndarray, shape (H, W), int16
+        3×3 Sobel derivatives, the input cv2.Canny accepts instead of an image.
+    mask : ndarray, shape (H, W), uint8 or None
+        Region of interest (non-zero inside); edges outside it are dropped.
+    box : (x0, y0, x1, y1)
+        The ROI's bounding box (the whole image without a mask); Hough runs on this crop.
+    """
+
+    dx: NDArray[np.int16]
+    dy: NDArray[np.int16]
+    mask: NDArray[np.uint8] | None
+    box: tuple[int, int, int, int]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.dx.shape  # type: ignore[return-value]
+
+    def sample(self, x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Bilinear dx, dy at float pixel positions (any shape); 0 outside the image."""
+        h, w = self.shape
+        x0 = np.floor(x).astype(np.intp)
+        y0 = np.floor(y).astype(np.intp)
+        fx, fy = x - x0, y - y0
+        inside = (x0 >= 0) & (y0 >= 0) & (x0 < w - 1) & (y0 < h - 1)
+        x0, y0 = np.where(inside, x0, 0), np.where(inside, y0, 0)
+        out = []
+        for g in (self.dx, self.dy):
+            v = ((g[y0, x0] * (1 - fx) + g[y0, x0 + 1] * fx) * (1 - fy)
+                 + (g[y0 + 1, x0] * (1 - fx) + g[y0 + 1, x0 + 1] * fx) * fy)
+            out.append(np.where(inside, v, 0.0))
+        return out[0], out[1]
+
+
+def gradients(gray: NDArray[np.uint8], mask: NDArray[np.uint8] | None = None, *,
+              sigma: float = 1.0) -> Gradients:
+    """Smooth lightly and take 3×3 Sobel derivatives (computed once per image).
+
+    Parameters
+    ----------
+    gray : ndarray, shape (H, W), uint8
+    mask : ndarray, shape (H, W), uint8, optional
+        ROI, non-zero inside.
+    sigma : float
+        Gaussian pre-smoothing, pixels (Canny's own first step; 0 disables).
+    """
+    if gray.ndim != 2 or gray.dtype != np.uint8:
+        raise ValueError(f"gray: expected a 2-D uint8 image, got {gray.dtype} {gray.shape}")
+    if mask is not None and mask.shape != gray.shape:
+        raise ValueError(f"mask: expected shape {gray.shape}, got {mask.shape}")
+    img = cv2.GaussianBlur(gray, (0, 0), sigma) if sigma > 0 else gray
+    dx = cv2.Sobel(img, cv2.CV_16S, 1, 0, ksize=3)
+    dy = cv2.Sobel(img, cv2.CV_16S, 0, 1, ksize=3)
+    h, w = gray.shape
+    box = (0, 0, w, h)
+    if mask is not None:
+        x, y, bw, bh = cv2.boundingRect(mask)
+        box = (x, y, x + bw, y + bh)
+    return Gradients(dx=dx, dy=dy, mask=mask, box=box)
+
+
+def canny(grad: Gradients, T_H: float, T_L: float | None = None) -> NDArray[np.uint8]:
+    """Canny edges with hysteresis T_L = 0.4·T_H on the L2 gradient magnitude, ROI applied.
+
+    ``T_L`` may be given explicitly (the automatic-threshold baselines use other ratios).
+
+    Returns
+    -------
+    ndarray, shape (H, W), uint8
+        255 on edge pixels.
+    """
+    low = CANNY_LOW_RATIO * float(T_H) if T_L is None else float(T_L)
+    edges = cv2.Canny(grad.dx, grad.dy, low, float(T_H), L2gradient=True)
+    if grad.mask is not None:
+        edges = cv2.bitwise_and(edges, grad.mask)
+    return edges

@@ -1,0 +1,239 @@
+"""Line stage (paper §3.A): standard Hough lines with votes, edge support, sub-pixel refit.
+
+A line is ``x·cos θ + y·sin θ = ρ`` (OpenCV's Hough form), θ in [0, π). Its foot point is
+``ρ·n`` with ``n = (cos θ, sin θ)``; positions along it are ``t`` in the direction
+``d = (−sin θ, cos θ)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from rovis.segment.edges import Gradients
+
+RHO_STEP = 1.0  # px
+THETA_STEP = np.pi / 180  # 1°
+
+
+@dataclass(frozen=True, eq=False)
+class Lines:
+    """Hough lines sorted by votes, strongest first.
+
+    Attributes
+    ----------
+    rho : ndarray, shape (N,), float64 — pixels
+    theta : ndarray, shape (N,), float64 — radians in [0, π)
+    votes : ndarray, shape (N,), int64 — accumulator count (edge pixels on the line)
+    """
+
+    rho: NDArray[np.float64]
+    theta: NDArray[np.float64]
+    votes: NDArray[np.int64]
+
+    def __len__(self) -> int:
+        return len(self.rho)
+
+    @classmethod
+    def empty(cls) -> Lines:
+        return cls(np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int64))
+
+    def take(self, index: NDArray[np.intp] | slice) -> Lines:
+        return Lines(self.rho[index], self.theta[index], self.votes[index])
+
+    @property
+    def normals(self) -> NDArray[np.float64]:
+        """Unit normals (N, 2)."""
+        return np.column_stack([np.cos(self.theta), np.sin(self.theta)])
+
+    @property
+    def directions(self) -> NDArray[np.float64]:
+        """Unit directions (N, 2)."""
+        return np.column_stack([-np.sin(self.theta), np.cos(self.theta)])
+
+
+def hough_lines(edges: NDArray[np.uint8], min_votes: int, *, max_lines: int | None = None,
+                box: tuple[int, int, int, int] | None = None, rho_tol: float = 3.0,
+                theta_tol: float = np.radians(1.5)) -> Lines:
+    """Standard Hough transform, keeping every line with at least ``min_votes`` votes.
+
+    One call serves every T_HG ≥ ``min_votes`` of the controller's inner loop: a threshold
+    is a cut on ``votes``. Near-duplicates (the same edge in neighbouring accumulator cells)
+    are merged into the strongest, within ``rho_tol`` px and ``theta_tol`` rad. With
+    ``max_lines`` only that many distinct lines are kept (the strongest). ``box``
+    ``(x0, y0, x1, y1)`` restricts the transform to the ROI's bounding box: the
+    accumulator, whose size sets Hough's fixed cost, shrinks with it.
+    """
+    x0, y0, x1, y1 = box if box is not None else (0, 0, edges.shape[1], edges.shape[0])
+    crop = edges[y0:y1, x0:x1]
+    if crop.size == 0:
+        return Lines.empty()
+    found = cv2.HoughLinesWithAccumulator(crop, RHO_STEP, THETA_STEP, max(int(min_votes), 1))
+    if found is None or len(found) == 0:
+        return Lines.empty()
+    found = found.reshape(-1, 3).astype(np.float64)
+    order = np.argsort(-found[:, 2], kind="stable")
+    if max_lines is not None:  # duplicates are rarely more than ~8 per distinct line
+        order = order[:8 * max_lines + 64]
+    rho, theta, votes = found[order, 0], found[order, 1], found[order, 2].astype(np.int64)
+    rho = rho + x0 * np.cos(theta) + y0 * np.sin(theta)  # back to full-image coordinates
+    keep = _suppress_duplicates(rho, theta, rho_tol, theta_tol, max_lines)
+    return Lines(rho[keep], theta[keep], votes[keep])
+
+
+def _suppress_duplicates(rho: NDArray[np.float64], theta: NDArray[np.float64], rho_tol: float,
+                         theta_tol: float, max_lines: int | None) -> NDArray[np.intp]:
+    """Indices of lines not within tolerance of a stronger kept line (input sorted by votes)."""
+    dth = np.abs(theta[:, None] - theta[None, :])
+    same = (dth < theta_tol) & (np.abs(rho[:, None] - rho[None, :]) < rho_tol)
+    # θ ≈ 0 and θ ≈ π describe the same line with ρ of opposite sign.
+    same |= (np.pi - dth < theta_tol) & (np.abs(rho[:, None] + rho[None, :]) < rho_tol)
+    dup = same.tolist()
+    kept: list[int] = []
+    for i in range(len(rho)):
+        if max_lines is not None and len(kept) >= max_lines:
+            break
+        row = dup[i]
+        if not any(row[k] for k in kept):
+            kept.append(i)
+    return np.asarray(kept, dtype=np.intp)
+
+
+@dataclass(frozen=True, eq=False)
+class SupportProfile:
+    """Edge hits sampled every pixel along each line, as cumulative sums.
+
+    ``cum[i, k]`` counts edge hits on line ``i`` at positions ``t < t0 + k``; the support of a
+    segment ``[ta, tb]`` is a difference of two entries, so any quad side costs O(1).
+    """
+
+    cum: NDArray[np.int32]  # (N, L + 1)
+    t0: float
+
+    def hits(self, line: NDArray[np.intp], ta: NDArray[np.float64],
+             tb: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Edge hits between positions ``ta`` and ``tb`` (any order) on ``line`` (vectorised)."""
+        lo = np.clip(np.rint(np.minimum(ta, tb) - self.t0).astype(np.intp), 0, self.cum.shape[1] - 1)
+        hi = np.clip(np.rint(np.maximum(ta, tb) - self.t0).astype(np.intp), 0, self.cum.shape[1] - 1)
+        return (self.cum[line, hi] - self.cum[line, lo]).astype(np.float64)
+
+
+def support_profile(lines: Lines, edges: NDArray[np.uint8], grad: Gradients | None = None, *,
+                    max_angle_deg: float = 25.0) -> SupportProfile:
+    """Sample edges along every line across the whole image.
+
+    A sample is a hit when an edge pixel lies within 1 px (3×3 dilation) and, given
+    ``grad``, the image gradient there points across the line (within ``max_angle_deg``):
+    the alignment test keeps dense texture or noise from supporting arbitrary lines.
+    """
+    h, w = edges.shape
+    half = float(np.hypot(h, w))
+    t = np.arange(-half, half + 1.0)
+    if len(lines) == 0:
+        return SupportProfile(np.zeros((0, len(t) + 1), dtype=np.int32), -half)
+    near = cv2.dilate(edges, np.ones((3, 3), np.uint8))  # an edge within 1 px counts
+    n, d = lines.normals, lines.directions
+    x = lines.rho[:, None] * n[:, :1] + t[None, :] * d[:, :1]
+    y = lines.rho[:, None] * n[:, 1:] + t[None, :] * d[:, 1:]
+    xi, yi = np.rint(x).astype(np.intp), np.rint(y).astype(np.intp)
+    inside = (xi >= 0) & (xi < w) & (yi >= 0) & (yi < h)
+    rows, xs, ys = np.nonzero(inside)[0], xi[inside], yi[inside]
+    hit_in = near[ys, xs] > 0
+    if grad is not None:
+        gx, gy = grad.dx[ys, xs].astype(np.float64), grad.dy[ys, xs].astype(np.float64)
+        across = np.abs(gx * n[rows, 0] + gy * n[rows, 1])
+        hit_in &= across >= np.cos(np.radians(max_angle_deg)) * np.hypot(gx, gy)
+    hit = np.zeros(x.shape, dtype=np.int32)
+    hit[inside] = hit_in
+    cum = np.zeros((len(lines), len(t) + 1), dtype=np.int32)
+    np.cumsum(hit, axis=1, out=cum[:, 1:])
+    return SupportProfile(cum, -half)
+
+
+def refine_segment(grad: Gradients, p_a: NDArray[np.float64], p_b: NDArray[np.float64], *,
+                   half_width: float = 3.0, trim: float = 4.0,
+                   iterations: int = 2) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """Fit a side between approximate corners ``p_a``, ``p_b`` to the gradient, sub-pixel.
+
+    Hough's 1 px / 1° cells leave a 200 px side up to ~2 px off at its ends. Along the side,
+    every pixel, the directional derivative across it is sampled over ±``half_width`` px; its
+    peak (refined by a parabola) is an edge point; a total-least-squares line through those
+    points, after dropping outliers, is the refined side.
+
+    Returns
+    -------
+    (point, direction) : ndarray, shape (2,) each — a point on the line and its unit direction,
+    or None when too few edge points support the side.
+    """
+    p_a, p_b = np.asarray(p_a, dtype=np.float64), np.asarray(p_b, dtype=np.float64)
+    length = float(np.linalg.norm(p_b - p_a))
+    if length < 2 * trim + 4:
+        return None
+    point, d = 0.5 * (p_a + p_b), (p_b - p_a) / length
+    offsets = np.arange(-half_width, half_width + 0.5, 1.0)
+    for _ in range(iterations):
+        n = np.array([-d[1], d[0]])
+        t = np.arange(-0.5 * length + trim, 0.5 * length - trim + 0.5, 1.0)
+        base = point + t[:, None] * d  # (S, 2)
+        xs = base[:, None, 0] + offsets[None, :] * n[0]
+        ys = base[:, None, 1] + offsets[None, :] * n[1]
+        gx, gy = grad.sample(xs, ys)
+        g = gx * n[0] + gy * n[1]  # derivative across the side, (S, O)
+        # One side of a boundary is brighter all along it; judge which from the columns at
+        # the line itself, not the window, which may reach a stronger neighbouring edge.
+        mid = len(offsets) // 2
+        sign = np.sign(np.sum(g[:, mid - 1:mid + 2]))
+        g = g * (sign if sign != 0 else 1.0)
+        k = np.argmax(g, axis=1)
+        interior = (k > 0) & (k < len(offsets) - 1)
+        rows = np.nonzero(interior)[0]
+        k = k[rows]
+        g0, g1, g2 = g[rows, k - 1], g[rows, k], g[rows, k + 1]
+        strong = g1 > 0.5 * np.median(g1) if len(g1) else np.zeros(0, bool)
+        denom = g0 - 2 * g1 + g2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            delta = np.where(denom < 0, 0.5 * (g0 - g2) / denom, 0.0)
+        offs = offsets[k] + np.clip(delta, -0.5, 0.5)
+        pts = base[rows] + offs[:, None] * n
+        pts = pts[strong]
+        if len(pts) < max(6, 0.3 * len(t)):
+            return None
+        fit = _fit_line(pts)
+        if fit is None:
+            return None
+        point_new, d_new = fit
+        if d_new @ d < 0:
+            d_new = -d_new
+        # Keep the segment's extent: re-centre on the projection of the old midpoint.
+        point = point_new + ((point - point_new) @ d_new) * d_new
+        d = d_new
+        half_width = 1.5  # the second pass only polishes
+    return point, d
+
+
+def _fit_line(pts: NDArray[np.float64], *, outlier_px: float = 1.0) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """Total-least-squares line through ``pts`` (M, 2), refit once without > outlier_px points."""
+    for _ in range(2):
+        c = pts.mean(axis=0)
+        _, s, Vt = np.linalg.svd(pts - c, full_matrices=False)
+        d = Vt[0]
+        resid = np.abs((pts - c) @ np.array([-d[1], d[0]]))
+        inliers = resid < max(outlier_px, 2.5 * np.median(resid))
+        if inliers.all() or inliers.sum() < 6:
+            break
+        pts = pts[inliers]
+    return c, d
+
+
+def intersect(p1: NDArray[np.float64], d1: NDArray[np.float64], p2: NDArray[np.float64],
+              d2: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    """Intersection of two lines given as point + direction (2,), or None if parallel."""
+    A = np.column_stack([d1, -d2])
+    det = np.linalg.det(A)
+    if abs(det) < 1e-9:
+        return None
+    s = np.linalg.solve(A, p2 - p1)[0]
+    return p1 + s * d1

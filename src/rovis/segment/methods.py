@@ -1,0 +1,130 @@
+"""Segmentation methods selectable by name: the paper's closed loop and the baselines.
+
+Every method ends in the same downstream chain (cover selection, sub-pixel refinement,
+eq. 1 corner order), so their results differ only by how edges and lines are found:
+
+- ``closed``: the cascade controller of §3.B (eq. 2);
+- ``open``: fixed T_H, T_HG (tuned once at 500 lx);
+- ``auto-median``: T_L, T_H = 0.67, 1.33 × the median intensity of the ROI;
+- ``auto-otsu``: T_H = Otsu's threshold of the ROI, T_L = 0.5·T_H;
+- ``lsd``: OpenCV's line segment detector instead of Canny + Hough;
+- ``contour``: Canny → findContours → approxPolyDP quadrilaterals.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from rovis.segment.boundary import (Evaluation, SegmentConfig, Segmentation, evaluate, finish,
+                                    roi_area)
+from rovis.segment.control import CascadeController
+from rovis.segment.edges import Gradients, canny
+from rovis.segment.lines import Lines, _suppress_duplicates, support_profile
+from rovis.segment.quads import CoverSelection, Quads, candidate_quads
+
+METHODS = ("closed", "open", "auto-median", "auto-otsu", "lsd", "contour")
+
+
+def segment(gray: NDArray[np.uint8], grad: Gradients, method: str = "closed", *,
+            controller: CascadeController | None = None,
+            cfg: SegmentConfig | None = None) -> Segmentation:
+    """Find book covers in one image with the named method.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (H, W), uint8
+        The image (the intensity-based baselines and LSD read it).
+    grad : Gradients
+        Its gradients and ROI, from :func:`rovis.segment.gradients`.
+    method : str
+        One of :data:`METHODS`.
+    controller : CascadeController, optional
+        For ``closed``: a controller that keeps its optimum across a sequence.
+    """
+    cfg = cfg or (controller.cfg if controller is not None else SegmentConfig())
+    if method == "closed":
+        return (controller or CascadeController(cfg, warm_start=False)).segment(grad)
+    if method == "open":
+        return finish(grad, evaluate(grad, cfg.open_T_H, cfg, T_HG=cfg.open_T_HG), 1)
+    if method in ("auto-median", "auto-otsu"):
+        pixels = gray[grad.mask > 0] if grad.mask is not None else gray.ravel()
+        if pixels.size == 0:
+            return Segmentation.empty()
+        if method == "auto-median":
+            v = float(np.median(pixels))
+            T_L, T_H = 0.67 * v, 1.33 * v
+        else:
+            T_H = float(cv2.threshold(pixels.reshape(1, -1), 0, 255,
+                                      cv2.THRESH_BINARY | cv2.THRESH_OTSU)[0])
+            T_L = 0.5 * T_H
+        T_H = max(T_H, 1.0)
+        return finish(grad, evaluate(grad, T_H, cfg, T_HG=cfg.open_T_HG, T_L=T_L), 1)
+    if method == "lsd":
+        return finish(grad, _lsd(gray, grad, cfg), 1)
+    if method == "contour":
+        return finish(grad, _contours(grad, cfg), 1)
+    raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
+
+
+_LSD = None
+
+
+def _lsd(gray: NDArray[np.uint8], grad: Gradients, cfg: SegmentConfig) -> Evaluation:
+    """Line segments from LSD, merged into lines (votes = segment length), then quads."""
+    global _LSD
+    if _LSD is None:  # created once per process
+        _LSD = cv2.createLineSegmentDetector(cv2.LSD_REFINE_STD)
+    area = roi_area(grad)
+    segs = _LSD.detect(gray)[0]
+    if segs is None:
+        return Evaluation(0.0, 0, 0.0, Lines.empty(), Quads.empty(), 1)
+    segs = segs.reshape(-1, 4).astype(np.float64)
+    if grad.mask is not None:  # keep segments whose midpoint is in the ROI
+        mid = np.rint(0.5 * (segs[:, :2] + segs[:, 2:])).astype(int)
+        h, w = grad.shape
+        ok = (mid[:, 0] >= 0) & (mid[:, 0] < w) & (mid[:, 1] >= 0) & (mid[:, 1] < h)
+        ok[ok] = grad.mask[mid[ok, 1], mid[ok, 0]] > 0
+        segs = segs[ok]
+    length = np.hypot(segs[:, 2] - segs[:, 0], segs[:, 3] - segs[:, 1])
+    segs, length = segs[length >= cfg.quads.min_side_px / 3], length[length >= cfg.quads.min_side_px / 3]
+    if len(segs) == 0:
+        return Evaluation(0.0, 0, 0.0, Lines.empty(), Quads.empty(), 1)
+    # Normal form of each segment's line, θ in [0, π).
+    theta = np.arctan2(segs[:, 2] - segs[:, 0], -(segs[:, 3] - segs[:, 1])) % np.pi
+    rho = segs[:, 0] * np.cos(theta) + segs[:, 1] * np.sin(theta)
+    order = np.argsort(-length)
+    rho, theta, length = rho[order], theta[order], length[order]
+    keep = _suppress_duplicates(rho, theta, 3.0, np.radians(1.5), cfg.n_max)
+    lines = Lines(rho[keep], theta[keep], np.rint(length[keep]).astype(np.int64))
+    drawn = np.zeros(grad.shape, np.uint8)  # the segments are LSD's "edge pixels"
+    for x1, y1, x2, y2 in segs[order]:
+        cv2.line(drawn, (int(round(x1)), int(round(y1))), (int(round(x2)), int(round(y2))), 255, 1)
+    quads = candidate_quads(lines, support_profile(lines, drawn), grad.shape, area, cfg.quads)
+    covers = CoverSelection(quads, cfg.quads).at(0)
+    return Evaluation(0.0, 0, 0.0, lines, covers, 1)
+
+
+def _contours(grad: Gradients, cfg: SegmentConfig) -> Evaluation:
+    """Quadrilaterals approximating Canny contours (no Hough lines)."""
+    edges = canny(grad, cfg.open_T_H)
+    contours, _ = cv2.findContours(edges, cv2.RETR_LIST, cv2.CHAIN_APPROX_SIMPLE)
+    area = roi_area(grad)
+    found = []
+    for c in contours:
+        peri = cv2.arcLength(c, True)
+        if peri < 4 * cfg.quads.min_side_px:
+            continue
+        approx = cv2.approxPolyDP(c, 0.02 * peri, True).reshape(-1, 2)
+        a = cv2.contourArea(approx.astype(np.float32))
+        if (len(approx) == 4 and cv2.isContourConvex(approx)
+                and cfg.quads.min_area_px <= a <= cfg.quads.max_area_frac * area):
+            found.append((approx.astype(np.float64), peri))
+    if not found:
+        return Evaluation(cfg.open_T_H, 0, 0.0, Lines.empty(), Quads.empty(), 1)
+    corners = np.array([f[0] for f in found])
+    quads = Quads(np.tile(np.arange(4), (len(found), 1)) + 4 * np.arange(len(found))[:, None],
+                  corners, np.ones((len(found), 4)), np.array([f[1] for f in found]),
+                  np.zeros(len(found), np.int64))
+    return Evaluation(cfg.open_T_H, 0, 0.0, Lines.empty(), CoverSelection(quads, cfg.quads).at(0), 1)

@@ -1,0 +1,274 @@
+"""Quadrilateral stage (paper §3.A): book-cover candidates from Hough line intersections.
+
+Every book cover is bounded by two pairs of roughly parallel lines. All pairs of such pairs
+are tried at once (vectorised); a candidate survives when its four sides are long enough,
+its angles plausible for a rectangle seen in perspective, and edge pixels lie along most of
+every side. Among overlapping survivors one is kept; a book's outline (cover plus the page
+block seen obliquely) loses to the cover nested in it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from rovis.segment.lines import Lines, SupportProfile
+
+
+@dataclass(frozen=True)
+class QuadConfig:
+    """What counts as a book cover in the image (pixels, degrees)."""
+
+    min_side_px: float = 30.0
+    max_side_px: float = 700.0
+    min_area_px: float = 2500.0
+    max_area_frac: float = 0.5  # of the ROI area
+    parallel_deg: float = 30.0  # opposite sides: at most this far from parallel
+    min_corner_deg: float = 40.0  # interior angles within [min, 180 - min]
+    min_support: float = 0.7  # fraction of every side covered by edge pixels
+    corner_trim_px: float = 3.0  # ignore this much of each side near its corners
+    max_overlap: float = 0.15  # of the smaller quad, between two accepted covers
+    nested_min_area: float = 0.6  # a cover fills at least this much of its outline
+    duplicate_px: float = 3.0  # candidates with all corners this close are one
+
+
+@dataclass(frozen=True, eq=False)
+class Quads:
+    """Candidate cover quadrilaterals.
+
+    Attributes
+    ----------
+    lines : ndarray, shape (M, 4), intp
+        Indices into the Lines they came from; side s runs from corner s to corner s+1.
+    corners : ndarray, shape (M, 4, 2), float64
+        Corner pixels, in cyclic order (not yet ordered per eq. 1).
+    support : ndarray, shape (M, 4), float64
+        Fraction of each side covered by edge pixels.
+    n_f : ndarray, shape (M,), float64
+        Edge pixels covered by the four sides (eq. 2's N_f(n)).
+    min_votes : ndarray, shape (M,), int64
+        The weakest side's Hough votes: the quad exists for every T_HG up to this.
+    """
+
+    lines: NDArray[np.intp]
+    corners: NDArray[np.float64]
+    support: NDArray[np.float64]
+    n_f: NDArray[np.float64]
+    min_votes: NDArray[np.int64]
+
+    def __len__(self) -> int:
+        return len(self.n_f)
+
+    def take(self, index: NDArray[np.intp] | NDArray[np.bool_]) -> Quads:
+        return Quads(self.lines[index], self.corners[index], self.support[index], self.n_f[index],
+                     self.min_votes[index])
+
+    @classmethod
+    def empty(cls) -> Quads:
+        return cls(np.zeros((0, 4), np.intp), np.zeros((0, 4, 2)), np.zeros((0, 4)), np.zeros(0),
+                   np.zeros(0, np.int64))
+
+
+def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[int, int],
+                    roi_area: float, cfg: QuadConfig = QuadConfig()) -> Quads:
+    """All cover candidates formed by two pairs of near-parallel lines (vectorised).
+
+    Parameters
+    ----------
+    lines : Lines
+        At most a few dozen lines (the controller caps them at N_max).
+    profile : SupportProfile
+        Edge hits along those lines.
+    image_shape : (H, W)
+    roi_area : float
+        Pixels; bounds the largest plausible cover.
+    """
+    n = len(lines)
+    if n < 4:
+        return Quads.empty()
+    th = lines.theta
+    dth = np.abs(th[:, None] - th[None, :])
+    dth = np.minimum(dth, np.pi - dth)
+    par = dth < np.radians(cfg.parallel_deg)
+    cross = dth > np.radians(cfg.min_corner_deg)
+    X, T = _intersections(lines)
+    h, w = image_shape
+    inside = ((X[..., 0] > -2) & (X[..., 0] < w + 1) & (X[..., 1] > -2) & (X[..., 1] < h + 1))
+    cross &= inside & inside.T
+
+    # Opposite sides: near-parallel lines a plausible side length apart.
+    sep = np.abs(lines.rho[:, None] - lines.rho[None, :])
+    sep = np.where(np.abs(th[:, None] - th[None, :]) > np.pi / 2,  # θ wrapped: ρ flips sign
+                   np.abs(lines.rho[:, None] + lines.rho[None, :]), sep)
+    par &= (sep >= cfg.min_side_px * 0.5) & (sep <= cfg.max_side_px)
+    iu, ku = np.nonzero(np.triu(par, 1))  # parallel pairs (i, k), i < k
+    if len(iu) < 2:
+        return Quads.empty()
+    a, b = np.triu_indices(len(iu), 1)
+    i, k, j, l = iu[a], ku[a], iu[b], ku[b]
+    ok = cross[i, j] & cross[j, k] & cross[k, l] & cross[l, i]
+    i, j, k, l = i[ok], j[ok], k[ok], l[ok]
+    if len(i) == 0:
+        return Quads.empty()
+    side_lines = np.stack([i, j, k, l], axis=1)  # side s on line side_lines[:, s]
+    # Each side runs on its line between the previous and the next side's intersections.
+    prev = np.roll(side_lines, 1, axis=1)
+    nxt = np.roll(side_lines, -1, axis=1)
+    ta, tb = T[side_lines, prev], T[side_lines, nxt]
+    length = np.abs(tb - ta)
+    ok = (length.min(axis=1) >= cfg.min_side_px) & (length.max(axis=1) <= cfg.max_side_px)
+    side_lines, ta, tb, length = side_lines[ok], ta[ok], tb[ok], length[ok]
+    trim = np.minimum(cfg.corner_trim_px, 0.25 * length)
+    lo, hi = np.minimum(ta, tb) + trim, np.maximum(ta, tb) - trim
+    hits = profile.hits(side_lines.ravel(), lo.ravel(), hi.ravel()).reshape(-1, 4)
+    support = hits / np.maximum(hi - lo, 1.0)
+    ok = support.min(axis=1) >= cfg.min_support
+    side_lines, hits, support = side_lines[ok], hits[ok], support[ok]
+    s0, s1, s2, s3 = side_lines.T
+    corners = np.stack([X[s3, s0], X[s0, s1], X[s1, s2], X[s2, s3]], axis=1)  # corner s starts side s
+    area = 0.5 * np.abs(_shoelace(corners))
+    keep = ((area >= cfg.min_area_px) & (area <= cfg.max_area_frac * roi_area)
+            & _convex_with_angles(corners, cfg.min_corner_deg))
+    quads = Quads(side_lines[keep], corners[keep], support[keep], hits[keep].sum(axis=1),
+                  lines.votes[side_lines[keep]].min(axis=1))
+    return quads
+
+
+def _intersections(lines: Lines) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Pairwise intersections X (N, N, 2) and positions T[i, j] of X[i, j] along line i."""
+    nrm, d = lines.normals, lines.directions
+    a1, b1, r1 = nrm[:, None, 0], nrm[:, None, 1], lines.rho[:, None]
+    a2, b2, r2 = nrm[None, :, 0], nrm[None, :, 1], lines.rho[None, :]
+    det = a1 * b2 - a2 * b1
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = (r1 * b2 - r2 * b1) / det
+        y = (a1 * r2 - a2 * r1) / det
+    X = np.stack([x, y], axis=-1)
+    X[~np.isfinite(X)] = 1e9  # parallel: far outside every image
+    T = X[..., 0] * d[:, None, 0] + X[..., 1] * d[:, None, 1]
+    return X, T
+
+
+def _shoelace(c: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Signed area of quads (M, 4, 2); positive when clockwise on screen (y down)."""
+    x, y = c[..., 0], c[..., 1]
+    return 0.5 * np.sum(x * np.roll(y, -1, axis=-1) - np.roll(x, -1, axis=-1) * y, axis=-1)
+
+
+def _convex_with_angles(c: NDArray[np.float64], min_deg: float) -> NDArray[np.bool_]:
+    e_in = c - np.roll(c, 1, axis=1)  # edge arriving at each corner
+    e_out = np.roll(c, -1, axis=1) - c
+    z = e_in[..., 0] * e_out[..., 1] - e_in[..., 1] * e_out[..., 0]
+    convex = np.all(z > 0, axis=1) | np.all(z < 0, axis=1)
+    cosang = -np.sum(e_in * e_out, axis=-1) / (
+        np.linalg.norm(e_in, axis=-1) * np.linalg.norm(e_out, axis=-1) + 1e-12)
+    ang = np.degrees(np.arccos(np.clip(cosang, -1, 1)))
+    return convex & np.all((ang >= min_deg) & (ang <= 180 - min_deg), axis=1)
+
+
+class CoverSelection:
+    """Choosing one quad per book, prepared once per edge map for every T_HG.
+
+    Near-identical candidates are merged (a group exists up to its strongest member's
+    T_HG); an outline (cover plus the page-block sides of a book seen obliquely) that
+    contains a cover sharing two or three of its lines gives way to that cover; of
+    overlapping survivors the one with the most edge pixels (N_f) is kept. The geometry is
+    computed here once; :meth:`at` only applies a threshold.
+    """
+
+    def __init__(self, quads: Quads, cfg: QuadConfig = QuadConfig()) -> None:
+        quads, group_votes = _distinct(quads, cfg.duplicate_px)
+        self.quads, self.votes, self.cfg = quads, group_votes, cfg
+        areas = 0.5 * np.abs(_shoelace(quads.corners))
+        lo, hi = quads.corners.min(axis=1), quads.corners.max(axis=1)
+        self.near = np.all((lo[:, None] <= hi[None, :]) & (lo[None, :] <= hi[:, None]), axis=2)
+        L = quads.lines
+        shared = (L[:, None, :, None] == L[None, :, None, :]).sum(axis=(2, 3))
+        # (small, big) pairs that may be cover and outline; the exact test only for those.
+        maybe = (self.near & (shared >= 2) & (areas[:, None] < areas[None, :])
+                 & (areas[:, None] >= cfg.nested_min_area * areas[None, :]))
+        self.covers_of: list[list[int]] = [[] for _ in range(len(quads))]  # outline -> covers
+        for small, big in zip(*np.nonzero(maybe)):
+            if _inside(quads.corners[small], quads.corners[big]):
+                self.covers_of[big].append(int(small))
+        self.order = np.argsort(-quads.n_f, kind="stable")
+        self._conflict: dict[tuple[int, int], bool] = {}
+
+    def _conflicts(self, a: int, b: int) -> bool:
+        if not self.near[a, b]:
+            return False
+        key = (min(a, b), max(a, b))
+        if key not in self._conflict:
+            self._conflict[key] = _overlap(self.quads.corners[a], self.quads.corners[b]) > self.cfg.max_overlap
+        return self._conflict[key]
+
+    def at(self, T_HG: int) -> Quads:
+        """The selected covers among the candidates that exist at ``T_HG``."""
+        exists = self.votes >= T_HG
+        kept: list[int] = []
+        for q in self.order:
+            if not exists[q] or any(exists[c] for c in self.covers_of[q]):
+                continue
+            if not any(self._conflicts(q, p) for p in kept):
+                kept.append(int(q))
+        return self.quads.take(np.asarray(kept, dtype=np.intp))
+
+
+def select_covers(quads: Quads, cfg: QuadConfig = QuadConfig()) -> Quads:
+    """One quad per book among ``quads`` (see :class:`CoverSelection`)."""
+    return CoverSelection(quads, cfg).at(0)
+
+
+def _distinct(quads: Quads, tol_px: float) -> tuple[Quads, NDArray[np.int64]]:
+    """Greedy by N_f: drop candidates whose four corners all lie within ``tol_px`` of a
+    stronger one's (the same cover from neighbouring lines). Returns the kept quads and,
+    per kept quad, the highest T_HG at which any member of its group exists."""
+    corners = _canonical(quads.corners)
+    order = np.argsort(-quads.n_f, kind="stable")
+    corners, remaining = corners[order], np.ones(len(order), bool)
+    kept, votes = [], []
+    for a in range(len(order)):
+        if not remaining[a]:
+            continue
+        same = remaining & (np.abs(corners - corners[a]).max(axis=(1, 2)) <= tol_px)
+        kept.append(order[a])
+        votes.append(quads.min_votes[order[same]].max())
+        remaining &= ~same
+    return quads.take(np.asarray(kept, dtype=np.intp)), np.asarray(votes, dtype=np.int64)
+
+
+def _canonical(c: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Quads (M, 4, 2) reordered clockwise on screen, smallest x + y first (eq. 1 order)."""
+    c = np.where((_shoelace(c) < 0)[:, None, None], c[:, ::-1], c)
+    start = np.argmin(c.sum(axis=2), axis=1)
+    idx = (start[:, None] + np.arange(4)) % 4
+    return np.take_along_axis(c, idx[..., None], axis=1)
+
+
+def _inside(inner: NDArray[np.float64], outer: NDArray[np.float64], tol: float = 2.0) -> bool:
+    contour = outer.astype(np.float32).reshape(-1, 1, 2)
+    return all(cv2.pointPolygonTest(contour, (float(x), float(y)), True) >= -tol for x, y in inner)
+
+
+def _overlap(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+    """Intersection area over the smaller quad's area."""
+    inter, _ = cv2.intersectConvexConvex(a.astype(np.float32), b.astype(np.float32))
+    smaller = min(cv2.contourArea(a.astype(np.float32)), cv2.contourArea(b.astype(np.float32)))
+    return float(inter) / smaller if smaller > 0 else 1.0
+
+
+def order_corners(corners: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Eq. 1's order: top-left corner first (smallest x + y), then clockwise on screen.
+
+    Parameters
+    ----------
+    corners : ndarray, shape (4, 2) — pixels, any cyclic order
+
+    Returns
+    -------
+    ndarray, shape (4, 2)
+    """
+    return _canonical(np.asarray(corners, dtype=np.float64)[None])[0]
