@@ -96,7 +96,7 @@ def _as_rotation(value: Any, key: str) -> NDArray[np.float64]:
     return geometry.nearest_rotation(R)  # remove the rounding of a printed file
 
 
-def _as_transform(value: Any, key: str) -> NDArray[np.float64]:
+def as_transform(value: Any, key: str) -> NDArray[np.float64]:
     T = _as_matrix(value, key, (4, 4))
     if not np.allclose(T[3], [0.0, 0.0, 0.0, 1.0], atol=1e-9):
         raise ValueError(f"{key}: expected a 4x4 rigid transform with last row [0 0 0 1]")
@@ -162,7 +162,7 @@ class StereoRig:
             or with a non-positive focal length.
         """
         size = None if image_size is None else _as_size(*image_size)
-        T_wl = np.eye(4) if T_world_left is None else _as_transform(T_world_left, "T_world_left")
+        T_wl = np.eye(4) if T_world_left is None else as_transform(T_world_left, "T_world_left")
         if world_frame is None:
             world_frame = "left_camera" if T_world_left is None else "calibration"
         rig = cls(K1=_as_intrinsics(K1, "K1"), D1=_as_distortion(D1, "D1"),
@@ -226,7 +226,7 @@ class StereoRig:
     def with_world(self, T_world_left: ArrayLike,
                    world_frame: WorldFrame = "calibration") -> StereoRig:
         """The same rig with another world frame (e.g. the desk marker's)."""
-        T = _as_transform(T_world_left, "T_world_left")
+        T = as_transform(T_world_left, "T_world_left")
         T.setflags(write=False)
         return replace(self, T_world_left=T, world_frame=world_frame)
 
@@ -479,7 +479,7 @@ def _from_kalibr(data: dict[str, Any]) -> StereoRig:
             raise ValueError(f"{cam}.distortion_coeffs: expected 4 radtan values, got {len(coeffs)}")
         Ds.append(coeffs + [0.0])
         size = size or tuple(_as_matrix(_require(data, f"{cam}.resolution"), f"{cam}.resolution", (2,)))
-    T_10 = _as_transform(_require(data, "cam1.T_cn_cnm1"), "cam1.T_cn_cnm1")  # X_cam1 = T·X_cam0
+    T_10 = as_transform(_require(data, "cam1.T_cn_cnm1"), "cam1.T_cn_cnm1")  # X_cam1 = T·X_cam0
     return StereoRig.from_arrays(K1=Ks[0], D1=Ds[0], K2=Ks[1], D2=Ds[1], R=T_10[:3, :3],
                                  T=T_10[:3, 3], image_size=size)
 

@@ -40,6 +40,63 @@ def _cmd_calib(args: argparse.Namespace) -> int:
     return 0
 
 
+def _expand_images(patterns: Sequence[str], what: str) -> list[str]:
+    """Paths from quoted glob patterns (sorted) or from paths the shell already expanded."""
+    import glob
+
+    paths: list[str] = []
+    for pattern in patterns:
+        if glob.has_magic(pattern):
+            matched = sorted(glob.glob(pattern))
+            if not matched:
+                raise InputError(f"{what}: no file matches {pattern!r}")
+            paths.extend(matched)
+        else:
+            paths.append(pattern)
+    return paths
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from rovis.calib import load_calibration, save_calibration
+    from rovis.calibrate import calibrate_stereo
+
+    board = _board_size(args.board)
+    left = _expand_images(args.left, "--left")
+    right = _expand_images(args.right, "--right")
+    fixed = load_calibration(args.intrinsics) if args.intrinsics else None
+    print(f"{len(left)} pairs, board {board[0]}x{board[1]} inner corners, "
+          f"{args.square * 1000:g} mm squares")
+    report = calibrate_stereo(left, right, board, args.square, fix_intrinsics_from=fixed,
+                              distortion=args.distortion, max_pair_rms=args.max_pair_rms)
+    print("\n".join(report.lines()))
+    save_calibration(report.rig, args.out)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _cmd_register(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from rovis.calib import load_calibration, save_calibration
+    from rovis.calibrate import read_pose, register
+
+    rig = load_calibration(args.calib)
+    T_base_marker = read_pose(args.marker_pose) if args.marker_pose else None
+    registered = register(rig, args.left, args.right, T_base_marker=T_base_marker,
+                          side=args.side, marker_id=args.marker_id)
+    T = registered.T_world_left
+    world = "robot base" if T_base_marker is not None else "desk marker"
+    print(f"T_world_left (world = {world} frame, metres):")
+    print("\n".join("  " + " ".join(f"{v:10.6f}" for v in row) for row in T))
+    down = np.degrees(np.arcsin(np.clip(-T[2, 2], -1.0, 1.0)))
+    print(f"left camera at ({T[0, 3]:.4f}, {T[1, 3]:.4f}, {T[2, 3]:.4f}) m, "
+          f"looking {down:.1f} deg below the world's horizontal")
+    out = args.out or args.calib
+    save_calibration(registered, out)
+    print(f"wrote {out}")
+    return 0
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
     from rovis.bench import bench_triangulation
 
@@ -71,6 +128,42 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="write the canonical OpenCV calib.yaml here")
     p.set_defaults(func=_cmd_calib)
 
+    p = sub.add_parser("calibrate", help="stereo calibration from chessboard image pairs; "
+                                         "writes calib.yaml")
+    p.add_argument("--left", nargs="+", required=True,
+                   help="left images: a quoted glob ('DIR/left*.jpg') or paths")
+    p.add_argument("--right", nargs="+", required=True,
+                   help="right images, paired with the left ones in sorted order")
+    p.add_argument("--board", default="4x6",
+                   help="inner corners per row x rows (default: %(default)s = 5x7 squares)")
+    p.add_argument("--square", type=_positive_float, default=0.030,
+                   help="square side in metres (default: %(default)s)")
+    p.add_argument("--intrinsics", help="take K/D from this calibration (any supported "
+                                        "format) and keep them fixed")
+    p.add_argument("--distortion", choices=["k1k2", "k1k2k3", "k1k2p1p2", "full"],
+                   default="full", help="distortion terms to estimate (default: %(default)s "
+                                        "= k1 k2 p1 p2 k3)")
+    p.add_argument("--max-pair-rms", type=_positive_float, default=None,
+                   help="drop pairs above this RMS, px (default: 3x the median, at least 1)")
+    p.add_argument("--out", default="calib.yaml", help="output file (default: %(default)s)")
+    p.set_defaults(func=_cmd_calibrate)
+
+    p = sub.add_parser("register", help="set the world frame of a calibration from the desk "
+                                        "marker seen in one stereo pair")
+    p.add_argument("--calib", required=True, help="calibration file (any supported format)")
+    p.add_argument("left", help="left image showing the marker")
+    p.add_argument("right", help="right image showing the marker")
+    p.add_argument("--marker-pose", metavar="T",
+                   help="the marker's pose in the robot base frame: 16 numbers in one quoted "
+                        "argument (row-major 4x4) or a YAML/text file; world = robot base "
+                        "then (default: world = marker frame)")
+    p.add_argument("--side", type=_positive_float, default=0.10,
+                   help="marker side in metres (default: %(default)s)")
+    p.add_argument("--marker-id", type=int, default=0,
+                   help="ArUco DICT_4X4_50 id (default: %(default)s)")
+    p.add_argument("--out", help="output calib.yaml (default: overwrite --calib)")
+    p.set_defaults(func=_cmd_register)
+
     p = sub.add_parser("bench", help="benchmarks on one core")
     p.add_argument("what", choices=["triangulation"], help="what to time")
     p.add_argument("--points", type=_positive_int, default=1_000_000,
@@ -88,6 +181,26 @@ def _positive_int(text: str) -> int:
     if value <= 0:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
     return value
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {value}")
+    return value
+
+
+def _board_size(text: str) -> tuple[int, int]:
+    parts = text.lower().split("x")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise InputError(f"--board: expected COLSxROWS inner corners like 4x6, got {text!r}")
+    cols, rows = (int(p) for p in parts)
+    if cols < 2 or rows < 2:
+        raise InputError(f"--board: expected at least 2x2 inner corners, got {text!r}")
+    return cols, rows
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 TriangulationMethod = Literal["dlt", "optimal"]
 
 # Below this sin(Θ) the ZXZ angles of eq. 7 are 0/0 (book lying flat): Φ := 0, Ψ := heading.
-_GIMBAL_EPS = 1e-9
+_GIMBAL_EPS = 1e-7
 
 
 # --------------------------------------------------------------------------- transforms
