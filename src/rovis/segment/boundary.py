@@ -139,7 +139,8 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
         lines = lines.take(lines.votes >= low)
     if len(lines) == 0:
         return Evaluation(T_H, low, 0.0, lines, Quads.empty(), 1)
-    quads = candidate_quads(lines, support_profile(lines, edges, grad), grad.shape, area, cfg.quads)
+    profile = support_profile(lines, edges, grad, box=grad.box)
+    quads = candidate_quads(lines, profile, grad.shape, area, cfg.quads)
     selection = CoverSelection(quads, cfg.quads)
     if T_HG is not None:
         candidates = [low]

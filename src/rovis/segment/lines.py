@@ -106,38 +106,44 @@ def _suppress_duplicates(rho: NDArray[np.float64], theta: NDArray[np.float64], r
 class SupportProfile:
     """Edge hits sampled every pixel along each line, as cumulative sums.
 
-    ``cum[i, k]`` counts edge hits on line ``i`` at positions ``t < t0 + k``; the support of a
-    segment ``[ta, tb]`` is a difference of two entries, so any quad side costs O(1).
+    Line ``i`` is sampled at positions ``t0[i] + k``; ``cum[i, k]`` counts the hits before
+    sample ``k``. The support of a segment ``[ta, tb]`` is a difference of two entries, so
+    any quad side costs O(1).
     """
 
     cum: NDArray[np.int32]  # (N, L + 1)
-    t0: float
+    t0: NDArray[np.float64]  # (N,)
 
     def hits(self, line: NDArray[np.intp], ta: NDArray[np.float64],
              tb: NDArray[np.float64]) -> NDArray[np.float64]:
         """Edge hits between positions ``ta`` and ``tb`` (any order) on ``line`` (vectorised)."""
-        lo = np.clip(np.rint(np.minimum(ta, tb) - self.t0).astype(np.intp), 0, self.cum.shape[1] - 1)
-        hi = np.clip(np.rint(np.maximum(ta, tb) - self.t0).astype(np.intp), 0, self.cum.shape[1] - 1)
+        last = self.cum.shape[1] - 1
+        lo = np.clip(np.rint(np.minimum(ta, tb) - self.t0[line]).astype(np.intp), 0, last)
+        hi = np.clip(np.rint(np.maximum(ta, tb) - self.t0[line]).astype(np.intp), 0, last)
         return (self.cum[line, hi] - self.cum[line, lo]).astype(np.float64)
 
 
 def support_profile(lines: Lines, edges: NDArray[np.uint8], grad: Gradients | None = None, *,
+                    box: tuple[int, int, int, int] | None = None,
                     max_angle_deg: float = 25.0) -> SupportProfile:
-    """Sample edges along every line across the whole image.
+    """Sample edges along every line where it crosses ``box`` (default: the image).
 
     A sample is a hit when an edge pixel lies within 1 px (3×3 dilation) and, given
     ``grad``, the image gradient there points across the line (within ``max_angle_deg``):
     the alignment test keeps dense texture or noise from supporting arbitrary lines.
     """
     h, w = edges.shape
-    half = float(np.hypot(h, w))
+    x0, y0, x1, y1 = box if box is not None else (0, 0, w, h)
+    centre = np.array([0.5 * (x0 + x1), 0.5 * (y0 + y1)])
+    half = 0.5 * float(np.hypot(x1 - x0, y1 - y0)) + 2.0
     t = np.arange(-half, half + 1.0)
     if len(lines) == 0:
-        return SupportProfile(np.zeros((0, len(t) + 1), dtype=np.int32), -half)
+        return SupportProfile(np.zeros((0, len(t) + 1), dtype=np.int32), np.zeros(0))
     near = cv2.dilate(edges, np.ones((3, 3), np.uint8))  # an edge within 1 px counts
     n, d = lines.normals, lines.directions
-    x = lines.rho[:, None] * n[:, :1] + t[None, :] * d[:, :1]
-    y = lines.rho[:, None] * n[:, 1:] + t[None, :] * d[:, 1:]
+    t_c = d @ centre  # position of the box centre's projection on each line
+    x = lines.rho[:, None] * n[:, :1] + (t_c[:, None] + t[None, :]) * d[:, :1]
+    y = lines.rho[:, None] * n[:, 1:] + (t_c[:, None] + t[None, :]) * d[:, 1:]
     xi, yi = np.rint(x).astype(np.intp), np.rint(y).astype(np.intp)
     inside = (xi >= 0) & (xi < w) & (yi >= 0) & (yi < h)
     rows, xs, ys = np.nonzero(inside)[0], xi[inside], yi[inside]
@@ -150,7 +156,7 @@ def support_profile(lines: Lines, edges: NDArray[np.uint8], grad: Gradients | No
     hit[inside] = hit_in
     cum = np.zeros((len(lines), len(t) + 1), dtype=np.int32)
     np.cumsum(hit, axis=1, out=cum[:, 1:])
-    return SupportProfile(cum, -half)
+    return SupportProfile(cum, t_c - half)
 
 
 def refine_segment(grad: Gradients, p_a: NDArray[np.float64], p_b: NDArray[np.float64], *,

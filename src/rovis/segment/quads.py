@@ -30,6 +30,7 @@ class QuadConfig:
     min_corner_deg: float = 40.0  # interior angles within [min, 180 - min]
     min_support: float = 0.7  # fraction of every side covered by edge pixels
     corner_trim_px: float = 3.0  # ignore this much of each side near its corners
+    arm_px: float = 12.0  # a corner needs edge support this long on both lines next to it
     max_overlap: float = 0.15  # of the smaller quad, between two accepted covers
     nested_min_area: float = 0.6  # a cover fills at least this much of its outline
     duplicate_px: float = 3.0  # candidates with all corners this close are one
@@ -98,6 +99,10 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     h, w = image_shape
     inside = ((X[..., 0] > -2) & (X[..., 0] < w + 1) & (X[..., 1] > -2) & (X[..., 1] < h + 1))
     cross &= inside & inside.T
+    # A cover corner is an L-junction: edges run right up to it. One arm is required, not
+    # two: where a book's page block shows, the outline's side starts a strip-width away.
+    ci, cj = np.nonzero(np.triu(cross, 1))
+    cross[ci, cj] = cross[cj, ci] = (_arm(profile, ci, T[ci, cj], cfg) | _arm(profile, cj, T[cj, ci], cfg))
 
     # Opposite sides: near-parallel lines a plausible side length apart.
     sep = np.abs(lines.rho[:, None] - lines.rho[None, :])
@@ -135,6 +140,15 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     quads = Quads(side_lines[keep], corners[keep], support[keep], hits[keep].sum(axis=1),
                   lines.votes[side_lines[keep]].min(axis=1))
     return quads
+
+
+def _arm(profile: SupportProfile, line: NDArray[np.intp], t: NDArray[np.float64],
+         cfg: QuadConfig) -> NDArray[np.bool_]:
+    """Whether ``line`` has edge support on either side of position ``t`` near it."""
+    a, b = cfg.corner_trim_px, cfg.corner_trim_px + cfg.arm_px
+    after = profile.hits(line, t + a, t + b)
+    before = profile.hits(line, t - b, t - a)
+    return np.maximum(after, before) >= cfg.min_support * cfg.arm_px
 
 
 def _intersections(lines: Lines) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
