@@ -28,6 +28,7 @@ import yaml
 from numpy.typing import ArrayLike, NDArray
 
 from rovis import geometry
+from rovis.io import publish
 
 Camera = Literal["left", "right"]
 WorldFrame = Literal["calibration", "marker", "left_camera"]
@@ -277,6 +278,17 @@ class StereoRig:
         criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
         out = cv2.undistortPoints(pts, K, D, R=None, P=None if normalized else K, criteria=criteria)
         return out.reshape(-1, 2)
+
+    def distort_points(self, ideal_px: ArrayLike, camera: Camera = "left") -> NDArray[np.float64]:
+        """Add lens distortion to ideal pixel coordinates (the inverse of
+        :meth:`undistort_points`); ``(N, 2)`` → ``(N, 2)``, pixels."""
+        K, D = self.intrinsics(camera)
+        pts = np.asarray(ideal_px, dtype=np.float64).reshape(-1, 2)
+        if len(pts) == 0:
+            return np.zeros((0, 2))
+        rays = np.column_stack([(pts - K[:2, 2]) @ np.linalg.inv(K[:2, :2]).T, np.ones(len(pts))])
+        px, _ = cv2.projectPoints(rays.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K, D)
+        return px.reshape(-1, 2)
 
     def triangulate(self, px_left: ArrayLike, px_right: ArrayLike, *,
                     method: Literal["dlt", "optimal"] = "dlt",
@@ -558,7 +570,7 @@ def save_calibration(rig: StereoRig, path: str | os.PathLike[str]) -> None:
             fs.write("T_world_left", rig.T_world_left)
             fs.write("world_frame", rig.world_frame)
         fs.release()
-        os.replace(tmp, path)
+        publish(tmp, path)
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)

@@ -97,6 +97,21 @@ def _cmd_register(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_synth(args: argparse.Namespace) -> int:
+    from rovis.synth import write_dataset
+
+    def progress(done: int, total: int) -> None:
+        end = "\n" if done == total else ""
+        print(f"\rrovis synth: {done}/{total} scenes", end=end, file=sys.stderr, flush=True)
+
+    out = write_dataset(args.out, protocol=args.protocol, n=args.n, seed=args.seed,
+                        exposure=args.exposure, lux=args.lux, force=args.force,
+                        preview=args.preview, progress=progress)
+    print(f"wrote {args.n} stereo pair{'s' if args.n != 1 else ''} ({args.protocol}) to {out}"
+          + (f", contact sheet {out / 'preview.png'}" if args.preview else ""))
+    return 0
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
     from rovis.bench import bench_triangulation
 
@@ -104,6 +119,18 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         print(f"triangulation of {args.points:,} points, one core, {args.repeats} runs")
         for timing in bench_triangulation(args.points, repeats=args.repeats):
             print(timing.line())
+        return 0
+    if args.what == "synth":
+        import numpy as np
+
+        from rovis.synth.bench import bench_synth
+
+        print(f"synthetic scenes: 1024x768 stereo pairs, 2x2 supersampling, one core, "
+              f"{args.repeats} scenes")
+        for t in bench_synth(args.repeats):
+            q1, q3 = np.percentile(t.seconds, [25, 75])
+            print(f"{t.name:<24} median {t.median * 1e3:9.2f} ms  "
+                  f"(IQR {q1 * 1e3:.2f}-{q3 * 1e3:.2f} ms, n={len(t.seconds)})")
         return 0
     raise InputError(f"bench: unknown benchmark {args.what!r}")
 
@@ -164,8 +191,28 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="output calib.yaml (default: overwrite --calib)")
     p.set_defaults(func=_cmd_register)
 
+    p = sub.add_parser("synth", help="render a synthetic stereo dataset of books on a desk "
+                                     "(calib.yaml, scenes/NNNN/left.png right.png truth.json)")
+    p.add_argument("out", help="output folder")
+    p.add_argument("--protocol", choices=["table1", "table2", "mixed"], default="table1",
+                   help="table1: 500 lx artificial, random poses; table2: same books, light "
+                        "swept 15-1200 lx (daylight, artificial, both exposure modes); mixed: "
+                        "random scenes and light (default: %(default)s)")
+    p.add_argument("--n", type=int, default=10, help="stereo pairs (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    p.add_argument("--exposure", choices=["auto", "fixed"], default=None,
+                   help="auto-exposure, or frozen at what auto chose at 500 lx (default: auto; "
+                        "table2 renders both)")
+    p.add_argument("--lux", type=float, default=None,
+                   help="fix the illuminance, lx (table1, mixed; default: the protocol's)")
+    p.add_argument("--force", action="store_true",
+                   help="replace the dataset in a non-empty OUT")
+    p.add_argument("--preview", action="store_true", help="also write OUT/preview.png, a "
+                                                          "contact sheet of up to 12 scenes")
+    p.set_defaults(func=_cmd_synth)
+
     p = sub.add_parser("bench", help="benchmarks on one core")
-    p.add_argument("what", choices=["triangulation"], help="what to time")
+    p.add_argument("what", choices=["triangulation", "synth"], help="what to time")
     p.add_argument("--points", type=_positive_int, default=1_000_000,
                    help="points per run (default: %(default)s)")
     p.add_argument("--repeats", type=_positive_int, default=7, help="runs (default: %(default)s)")
