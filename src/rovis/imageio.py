@@ -37,7 +37,9 @@ def to_gray_u8(image: NDArray[np.generic], name: str = "image") -> NDArray[np.ui
     img = np.asarray(image)
     if img.ndim == 3 and img.shape[2] == 1:
         img = img[:, :, 0]
-    if img.ndim not in (2, 3) or img.size == 0:
+    if img.size == 0:
+        raise ValueError(f"{name}: empty image (shape {img.shape})")
+    if img.ndim not in (2, 3):
         raise ValueError(f"{name}: expected an (H, W) or (H, W, 3|4) image, got shape {img.shape}")
     if img.ndim == 3:
         if img.shape[2] not in (3, 4):

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import json
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from rovis.geometry import BookPose
 
@@ -13,7 +16,7 @@ def _round(a: Any, nd: int = 6) -> Any:
     """Plain Python numbers rounded to ``nd`` decimals (µm for metres); NaN becomes None."""
     arr = np.asarray(a, dtype=np.float64)
     if arr.ndim == 0:
-        return None if np.isnan(arr) else round(float(arr), nd)
+        return None if not np.isfinite(arr) else round(float(arr), nd)
     return [_round(v, nd) for v in arr]
 
 
@@ -34,3 +37,90 @@ def pose_to_dict(pose: BookPose, **extra: Any) -> dict[str, Any]:
         corners_world=_round(pose.corners),
     )
     return out
+
+
+@dataclass(frozen=True, eq=False)
+class BookDetection:
+    """One book found in a stereo pair.
+
+    Attributes
+    ----------
+    id : int
+    pose : BookPose
+        Centre, rotation, size (x, y extent and height above the desk), world frame.
+    corners_world : ndarray, shape (4, 3)
+        The triangulated cover corners P1..P4, metres.
+    corners_left_px, corners_right_px : ndarray, shape (4, 2)
+        The cover corners in the raw images, pixels, P1 (top-left in the left image) first.
+    reprojection_error_px : float
+        Mean distance between the measured corners and the reprojected 3D corners.
+    quality : float
+        Fraction of the cover's sides backed by edge pixels (worst of the two images).
+    stereo_error_px : float
+        Mean distance of the right corners to where the left corners allow them.
+    """
+
+    id: int
+    pose: BookPose
+    corners_world: NDArray[np.float64]
+    corners_left_px: NDArray[np.float64]
+    corners_right_px: NDArray[np.float64]
+    reprojection_error_px: float
+    quality: float
+    stereo_error_px: float = 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        out = pose_to_dict(self.pose, id=self.id)
+        out["corners_world"] = _round(self.corners_world)  # measured, not the fitted rectangle
+        out.update(corners_left_px=_round(self.corners_left_px, 3),
+                   corners_right_px=_round(self.corners_right_px, 3),
+                   reprojection_error_px=_round(self.reprojection_error_px, 4),
+                   quality=_round(self.quality, 4))
+        return out
+
+
+@dataclass(frozen=True)
+class SegmentationInfo:
+    """What the segmentation of one image settled on."""
+
+    T_H: float
+    T_HG: int
+    y: float
+    iterations: int
+    n_quads: int
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"T_H": _round(self.T_H, 3), "T_HG": int(self.T_HG), "y": _round(self.y, 8),
+                "iterations": int(self.iterations), "n_quads": int(self.n_quads)}
+
+
+@dataclass(frozen=True, eq=False)
+class FrameResult:
+    """Everything found in one stereo pair (the detection JSON of DESIGN §3)."""
+
+    objects: list[BookDetection]
+    desk_plane: NDArray[np.float64] | None
+    world_frame: str
+    segmentation: dict[str, SegmentationInfo]
+    timing_ms: dict[str, float]
+    warnings: list[str]
+    T_world_left: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
+    lines: dict[str, Any] = field(default_factory=dict)  # Hough lines per camera, for overlays
+
+    def __len__(self) -> int:
+        return len(self.objects)
+
+    def to_dict(self, **extra: Any) -> dict[str, Any]:
+        out: dict[str, Any] = dict(extra)
+        out.update(
+            objects=[o.to_dict() for o in self.objects],
+            desk_plane=None if self.desk_plane is None else _round(self.desk_plane, 9),
+            world_frame=self.world_frame,
+            T_world_left=_round(self.T_world_left, 9),
+            segmentation={cam: info.to_dict() for cam, info in self.segmentation.items()},
+            timing_ms={k: _round(v, 3) for k, v in self.timing_ms.items()},
+            warnings=list(self.warnings))
+        return out
+
+    def to_json(self, **extra: Any) -> str:
+        return json.dumps(self.to_dict(**extra))

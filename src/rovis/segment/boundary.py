@@ -47,7 +47,7 @@ class SegmentConfig:
         Multiplicative T_H step of a warm-started (sequence) search.
     """
 
-    n_max: int = 40
+    n_max: int = 100
     T_H_range: tuple[float, float] = (12.0, 480.0)
     T_HG_min: int = 30
     quality_sign: int = AS_DESCRIBED
@@ -133,7 +133,7 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
     low = cfg.T_HG_min if T_HG is None else int(T_HG)
     if T_HG is None and cv2.countNonZero(edges) > cfg.max_edge_frac * area:
         return Evaluation(T_H, low, 0.0, Lines.empty(), Quads.empty(), 1)
-    lines = hough_lines(edges, low, max_lines=cfg.n_max + 1, box=grad.box)
+    lines = hough_lines(edges, low, grad=grad, max_lines=cfg.n_max + 1, box=grad.box)
     if len(lines) > cfg.n_max:  # above the (N_max+1)-th line's votes N ≤ N_max holds
         low = max(low, int(lines.votes[cfg.n_max]) + 1)
         lines = lines.take(lines.votes >= low)

@@ -55,30 +55,57 @@ class Lines:
         return np.column_stack([-np.sin(self.theta), np.cos(self.theta)])
 
 
-def hough_lines(edges: NDArray[np.uint8], min_votes: int, *, max_lines: int | None = None,
-                box: tuple[int, int, int, int] | None = None, rho_tol: float = 3.0,
+def hough_lines(edges: NDArray[np.uint8], min_votes: int, *, grad: Gradients | None = None,
+                max_lines: int | None = None, box: tuple[int, int, int, int] | None = None,
+                bins: int = 8, margin: float = np.radians(12.0), rho_tol: float = 3.0,
                 theta_tol: float = np.radians(1.5)) -> Lines:
     """Standard Hough transform, keeping every line with at least ``min_votes`` votes.
 
     One call serves every T_HG ≥ ``min_votes`` of the controller's inner loop: a threshold
     is a cut on ``votes``. Near-duplicates (the same edge in neighbouring accumulator cells)
-    are merged into the strongest, within ``rho_tol`` px and ``theta_tol`` rad. With
-    ``max_lines`` only that many distinct lines are kept (the strongest). ``box``
-    ``(x0, y0, x1, y1)`` restricts the transform to the ROI's bounding box: the
-    accumulator, whose size sets Hough's fixed cost, shrinks with it.
+    are merged into the strongest, within ``rho_tol`` px and ``theta_tol`` rad; with
+    ``max_lines`` only that many distinct lines are kept (the strongest).
+
+    With ``grad``, an edge pixel votes only for lines its gradient is normal to (within
+    ``margin``): the θ range is split into ``bins`` and each is transformed with the edge
+    pixels of matching orientation. Printed text or a graphic is a dense blob of edges that
+    would otherwise give every line through it as many votes as a book's side; gated, it
+    votes only along its own edges. ``box`` ``(x0, y0, x1, y1)`` restricts the transform to
+    the ROI's bounding box: the accumulator, whose size sets Hough's fixed cost, shrinks.
     """
     x0, y0, x1, y1 = box if box is not None else (0, 0, edges.shape[1], edges.shape[0])
     crop = edges[y0:y1, x0:x1]
-    if crop.size == 0:
+    if crop.size == 0 or not crop.any():
         return Lines.empty()
-    found = cv2.HoughLinesWithAccumulator(crop, RHO_STEP, THETA_STEP, max(int(min_votes), 1))
-    if found is None or len(found) == 0:
+    threshold = max(int(min_votes), 1)
+    if grad is None:
+        found = [cv2.HoughLinesWithAccumulator(crop, RHO_STEP, THETA_STEP, threshold)]
+    else:
+        ys, xs = np.nonzero(crop)
+        phi = np.arctan2(grad.dy[ys + y0, xs + x0].astype(np.float32),
+                         grad.dx[ys + y0, xs + x0].astype(np.float32)) % np.pi
+        found = []
+        width = np.pi / bins
+        for b in range(bins):
+            lo, hi = b * width, (b + 1) * width
+            # distance of each pixel's normal angle to the bin, on the circle of lines (mod π)
+            centre = 0.5 * (lo + hi)
+            off = np.abs((phi - centre + np.pi / 2) % np.pi - np.pi / 2)
+            sel = off <= 0.5 * width + margin
+            if not sel.any():
+                continue
+            part = np.zeros_like(crop)
+            part[ys[sel], xs[sel]] = 255
+            found.append(cv2.HoughLinesWithAccumulator(part, RHO_STEP, THETA_STEP, threshold,
+                                                       min_theta=lo, max_theta=hi))
+    found = [f.reshape(-1, 3) for f in found if f is not None and len(f)]
+    if not found:
         return Lines.empty()
-    found = found.reshape(-1, 3).astype(np.float64)
-    order = np.argsort(-found[:, 2], kind="stable")
-    if max_lines is not None:  # duplicates are rarely more than ~8 per distinct line
-        order = order[:8 * max_lines + 64]
-    rho, theta, votes = found[order, 0], found[order, 1], found[order, 2].astype(np.int64)
+    rows = np.vstack(found).astype(np.float64)
+    order = np.argsort(-rows[:, 2], kind="stable")
+    if max_lines is not None:  # gated Hough gives few duplicates per distinct line
+        order = order[:3 * max_lines + 32]
+    rho, theta, votes = rows[order, 0], rows[order, 1], rows[order, 2].astype(np.int64)
     rho = rho + x0 * np.cos(theta) + y0 * np.sin(theta)  # back to full-image coordinates
     keep = _suppress_duplicates(rho, theta, rho_tol, theta_tol, max_lines)
     return Lines(rho[keep], theta[keep], votes[keep])
@@ -86,19 +113,31 @@ def hough_lines(edges: NDArray[np.uint8], min_votes: int, *, max_lines: int | No
 
 def _suppress_duplicates(rho: NDArray[np.float64], theta: NDArray[np.float64], rho_tol: float,
                          theta_tol: float, max_lines: int | None) -> NDArray[np.intp]:
-    """Indices of lines not within tolerance of a stronger kept line (input sorted by votes)."""
-    dth = np.abs(theta[:, None] - theta[None, :])
-    same = (dth < theta_tol) & (np.abs(rho[:, None] - rho[None, :]) < rho_tol)
-    # θ ≈ 0 and θ ≈ π describe the same line with ρ of opposite sign.
-    same |= (np.pi - dth < theta_tol) & (np.abs(rho[:, None] + rho[None, :]) < rho_tol)
-    dup = same.tolist()
+    """Indices of lines not within tolerance of a stronger kept line (input sorted by votes).
+
+    Kept lines are hashed on a (ρ, θ) grid of the tolerances, so each candidate is compared
+    with the kept lines of its neighbouring cells only. (ρ, θ) and (−ρ, θ ± π) are one line:
+    a kept line near that seam is also stored in its mirrored form.
+    """
+    grid: dict[tuple[int, int], list[tuple[float, float]]] = {}
     kept: list[int] = []
     for i in range(len(rho)):
         if max_lines is not None and len(kept) >= max_lines:
             break
-        row = dup[i]
-        if not any(row[k] for k in kept):
-            kept.append(i)
+        r, t = float(rho[i]), float(theta[i])
+        ri, ti = int(np.floor(r / rho_tol)), int(np.floor(t / theta_tol))
+        if any(abs(tk - t) < theta_tol and abs(rk - r) < rho_tol
+               for dr in (-1, 0, 1) for dt in (-1, 0, 1)
+               for rk, tk in grid.get((ri + dr, ti + dt), ())):
+            continue
+        kept.append(i)
+        forms = [(r, t)]
+        if t < theta_tol:
+            forms.append((-r, t + np.pi))
+        if t > np.pi - theta_tol:
+            forms.append((-r, t - np.pi))
+        for rf, tf in forms:
+            grid.setdefault((int(np.floor(rf / rho_tol)), int(np.floor(tf / theta_tol))), []).append((rf, tf))
     return np.asarray(kept, dtype=np.intp)
 
 

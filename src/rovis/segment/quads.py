@@ -31,6 +31,7 @@ class QuadConfig:
     min_support: float = 0.7  # fraction of every side covered by edge pixels
     corner_trim_px: float = 3.0  # ignore this much of each side near its corners
     arm_px: float = 12.0  # a corner needs edge support this long on both lines next to it
+    arm_gap_px: float = 24.0  # ...starting at most this far from the intersection
     max_overlap: float = 0.15  # of the smaller quad, between two accepted covers
     nested_min_area: float = 0.6  # a cover fills at least this much of its outline
     duplicate_px: float = 3.0  # candidates with all corners this close are one
@@ -75,12 +76,18 @@ class Quads:
 
 def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[int, int],
                     roi_area: float, cfg: QuadConfig = QuadConfig()) -> Quads:
-    """All cover candidates formed by two pairs of near-parallel lines (vectorised).
+    """Cover candidates: 4-cycles of a corner graph over the lines.
+
+    Two crossing lines make a corner when both carry edge pixels next to their
+    intersection (an L-junction, :func:`_arm`). A cover is a cycle i–j–k–l of four corners
+    whose opposite lines are near-parallel; the cycles are found as pairs of common corner
+    neighbours (j, l) of each near-parallel pair (i, k), so the work grows with the corners
+    found, not with the fourth power of the number of lines. Survivors must have long
+    enough sides, edge pixels along most of every side, plausible angles and area.
 
     Parameters
     ----------
     lines : Lines
-        At most a few dozen lines (the controller caps them at N_max).
     profile : SupportProfile
         Edge hits along those lines.
     image_shape : (H, W)
@@ -93,32 +100,34 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     th = lines.theta
     dth = np.abs(th[:, None] - th[None, :])
     dth = np.minimum(dth, np.pi - dth)
-    par = dth < np.radians(cfg.parallel_deg)
-    cross = dth > np.radians(cfg.min_corner_deg)
     X, T = _intersections(lines)
     h, w = image_shape
     inside = ((X[..., 0] > -2) & (X[..., 0] < w + 1) & (X[..., 1] > -2) & (X[..., 1] < h + 1))
-    cross &= inside & inside.T
-    # A cover corner is an L-junction: edges run right up to it. One arm is required, not
-    # two: where a book's page block shows, the outline's side starts a strip-width away.
-    ci, cj = np.nonzero(np.triu(cross, 1))
-    cross[ci, cj] = cross[cj, ci] = (_arm(profile, ci, T[ci, cj], cfg) | _arm(profile, cj, T[cj, ci], cfg))
+    corner = (dth > np.radians(cfg.min_corner_deg)) & inside & inside.T
+    ci, cj = np.nonzero(np.triu(corner, 1))
+    ok = _arm(profile, ci, T[ci, cj], cfg) & _arm(profile, cj, T[cj, ci], cfg)
+    corner[:] = False
+    corner[ci[ok], cj[ok]] = corner[cj[ok], ci[ok]] = True
 
     # Opposite sides: near-parallel lines a plausible side length apart.
     sep = np.abs(lines.rho[:, None] - lines.rho[None, :])
     sep = np.where(np.abs(th[:, None] - th[None, :]) > np.pi / 2,  # θ wrapped: ρ flips sign
                    np.abs(lines.rho[:, None] + lines.rho[None, :]), sep)
-    par &= (sep >= cfg.min_side_px * 0.5) & (sep <= cfg.max_side_px)
-    iu, ku = np.nonzero(np.triu(par, 1))  # parallel pairs (i, k), i < k
-    if len(iu) < 2:
+    par = (dth < np.radians(cfg.parallel_deg)) & (sep >= cfg.min_side_px * 0.5) & (sep <= cfg.max_side_px)
+    iu, ku = np.nonzero(np.triu(par, 1))
+    common = corner[iu] & corner[ku]  # (pairs, n): lines crossing both with a corner
+    cycles = []
+    for p in np.nonzero(common.sum(axis=1) >= 2)[0]:
+        js = np.nonzero(common[p])[0]
+        a, b = np.triu_indices(len(js), 1)
+        j, l = js[a], js[b]
+        keep = par[j, l]
+        if keep.any():
+            cycles.append(np.column_stack([np.full(keep.sum(), iu[p]), j[keep],
+                                           np.full(keep.sum(), ku[p]), l[keep]]))
+    if not cycles:
         return Quads.empty()
-    a, b = np.triu_indices(len(iu), 1)
-    i, k, j, l = iu[a], ku[a], iu[b], ku[b]
-    ok = cross[i, j] & cross[j, k] & cross[k, l] & cross[l, i]
-    i, j, k, l = i[ok], j[ok], k[ok], l[ok]
-    if len(i) == 0:
-        return Quads.empty()
-    side_lines = np.stack([i, j, k, l], axis=1)  # side s on line side_lines[:, s]
+    side_lines = np.vstack(cycles)  # side s on line side_lines[:, s]
     # Each side runs on its line between the previous and the next side's intersections.
     prev = np.roll(side_lines, 1, axis=1)
     nxt = np.roll(side_lines, -1, axis=1)
@@ -144,11 +153,16 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
 
 def _arm(profile: SupportProfile, line: NDArray[np.intp], t: NDArray[np.float64],
          cfg: QuadConfig) -> NDArray[np.bool_]:
-    """Whether ``line`` has edge support on either side of position ``t`` near it."""
-    a, b = cfg.corner_trim_px, cfg.corner_trim_px + cfg.arm_px
-    after = profile.hits(line, t + a, t + b)
-    before = profile.hits(line, t - b, t - a)
-    return np.maximum(after, before) >= cfg.min_support * cfg.arm_px
+    """Whether ``line`` carries edge pixels along ``arm_px`` on either side of position ``t``,
+    starting at most ``arm_gap_px`` away (a book's outline reaches its corner a page-block
+    strip later)."""
+    found = np.zeros(len(line), bool)
+    need = cfg.min_support * cfg.arm_px
+    for gap in (cfg.corner_trim_px, 0.5 * cfg.arm_gap_px, cfg.arm_gap_px):
+        after = profile.hits(line, t + gap, t + gap + cfg.arm_px)
+        before = profile.hits(line, t - gap - cfg.arm_px, t - gap)
+        found |= np.maximum(after, before) >= need
+    return found
 
 
 def _intersections(lines: Lines) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -1,0 +1,300 @@
+"""``detect``: the paper's Fig. 2, top to bottom, for one stereo pair.
+
+1. marker → desk plane and image ROI (the workspace rectangle), in both images;
+2. undistort both images (lines are straight only there);
+3. boundary segmentation of each image (closed loop or a baseline) → cover corners;
+4. stereo correspondence of the covers;
+5. triangulation of the four corners (eq. 3–5) → pose (eq. 6–7) and cuboid.
+
+A :class:`Detector` keeps what is set up once per rig (undistortion maps) and, in a
+sequence, the controllers' previous optimum (warm start).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from rovis import geometry, marker
+from rovis.calib import StereoRig
+from rovis.imageio import to_gray_u8
+from rovis.results import BookDetection, FrameResult, SegmentationInfo
+from rovis.segment import CascadeController, SegmentConfig, Segmentation, gradients
+from rovis.segment.methods import METHODS, segment
+from rovis.stereo import StereoConfig, match_quads
+
+
+@dataclass(frozen=True)
+class DetectConfig:
+    """Settings of :func:`detect` (every field has a sensible default).
+
+    Attributes
+    ----------
+    method : str
+        Segmentation method, one of ``closed open auto-median auto-otsu lsd contour``.
+    triangulation : {"dlt", "optimal"}
+    use_marker : bool
+        Look for the desk marker in each frame (ROI and desk plane). Not needed when the
+        calibration is registered to the marker (``world_frame: marker``, what
+        ``rovis register`` and ``rovis synth`` write): the desk is then z = 0 of the world.
+    marker_id, marker_side : int, float
+    workspace_x, workspace_y : (float, float)
+        The workspace rectangle in the marker frame, metres.
+    roi_height, roi_margin_px : float, int
+        The ROI is the workspace up to this height above the desk (metres), grown by a margin.
+    max_tilt_deg : float
+        A book lies on the desk: a reconstructed cover tilted more than this against the desk
+        plane is not a cover (e.g. the outline of a book with its page block) and is dropped.
+    segment, stereo : SegmentConfig, StereoConfig
+    """
+
+    method: str = "closed"
+    triangulation: Literal["dlt", "optimal"] = "dlt"
+    use_marker: bool = True
+    marker_id: int = marker.MARKER_ID
+    marker_side: float = marker.MARKER_SIDE
+    workspace_x: tuple[float, float] = marker.WORKSPACE_X
+    workspace_y: tuple[float, float] = marker.WORKSPACE_Y
+    roi_height: float = 0.10
+    roi_margin_px: int = 8
+    max_tilt_deg: float = 6.0
+    segment: SegmentConfig = field(default_factory=SegmentConfig)
+    stereo: StereoConfig = field(default_factory=StereoConfig)
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {self.method!r}")
+        if self.triangulation not in ("dlt", "optimal"):
+            raise ValueError(f"triangulation: expected 'dlt' or 'optimal', got {self.triangulation!r}")
+
+
+class Detector:
+    """Detects books in stereo pairs from one calibrated rig.
+
+    Parameters
+    ----------
+    rig : StereoRig
+    cfg : DetectConfig, optional
+    """
+
+    def __init__(self, rig: StereoRig, cfg: DetectConfig | None = None) -> None:
+        if rig.image_size is None:
+            raise ValueError("calibration: image size unknown; give image_width/height")
+        self.rig = rig
+        self.cfg = cfg or DetectConfig()
+        w, h = rig.image_size
+        # Raw → ideal maps, computed once: for each ideal pixel, where to read the raw image.
+        self._maps = {cam: cv2.initUndistortRectifyMap(K, D, None, K, (w, h), cv2.CV_16SC2)
+                      for cam, (K, D) in (("left", (rig.K1, rig.D1)), ("right", (rig.K2, rig.D2)))}
+        self._controllers = {cam: CascadeController(self.cfg.segment) for cam in ("left", "right")}
+
+    def reset(self) -> None:
+        """Start a new sequence: forget the controllers' previous optimum."""
+        for ctl in self._controllers.values():
+            ctl.reset()
+
+    def detect(self, left: NDArray[np.generic], right: NDArray[np.generic]) -> FrameResult:
+        """Find the books in one stereo pair of raw images.
+
+        Parameters
+        ----------
+        left, right : ndarray, shape (H, W) or (H, W, 3); uint8 or uint16
+            Raw camera images (colour and 16-bit are converted to 8-bit grey).
+
+        Raises
+        ------
+        ValueError
+            An image that is empty, of the wrong size, or of an unsupported type.
+        """
+        timing: dict[str, float] = {}
+        clock = time.perf_counter()
+
+        def lap(stage: str) -> None:
+            nonlocal clock
+            now = time.perf_counter()
+            timing[stage] = timing.get(stage, 0.0) + 1e3 * (now - clock)
+            clock = now
+
+        gray = {"left": to_gray_u8(left, "left image"), "right": to_gray_u8(right, "right image")}
+        self._check_sizes(gray["left"], gray["right"])
+        warnings: list[str] = []
+        rig = self.rig
+
+        # 1. marker → world frame, desk plane, ROI
+        T_world_marker, desk_plane = None, None
+        if rig.world_frame == "marker":
+            # Registered (rovis register): the world is the marker's frame and the desk is
+            # z = 0, known better than one frame's 10 cm marker can tell (~1° of tilt).
+            T_world_marker = np.eye(4)
+            desk_plane = marker.desk_plane_from_marker(T_world_marker)
+        elif self.cfg.use_marker:
+            T_world_marker = self._find_marker(gray, warnings)
+            if T_world_marker is not None:
+                if rig.world_frame == "left_camera":  # DESIGN §2: then the marker is the world
+                    rig = rig.with_world(geometry.invert_transform(T_world_marker) @ rig.T_world_left,
+                                         "marker")
+                    T_world_marker = np.eye(4)
+                desk_plane = marker.desk_plane_from_marker(T_world_marker)
+        lap("marker")
+
+        # 2. undistort
+        ideal = {cam: cv2.remap(gray[cam], *self._maps[cam], cv2.INTER_LINEAR) for cam in gray}
+        lap("undistort")
+
+        # 3. segmentation per image
+        segs: dict[str, Segmentation] = {}
+        for cam in ("left", "right"):
+            mask = self._roi_mask(rig, cam, T_world_marker)
+            grad = gradients(ideal[cam], mask)
+            lap("gradients")
+            segs[cam] = segment(ideal[cam], grad, self.cfg.method,
+                                controller=self._controllers[cam], cfg=self.cfg.segment)
+            lap("segmentation")
+        if len(segs["left"]) == 0 or len(segs["right"]) == 0:
+            warnings.append("no book cover found in the "
+                            + " and ".join(c for c in ("left", "right") if len(segs[c]) == 0)
+                            + " image")
+
+        # 4. stereo correspondence
+        matches = match_quads(segs["left"].corners, segs["right"].corners, rig.Q_L, rig.Q_R,
+                              desk_plane=desk_plane, gray_left=ideal["left"],
+                              gray_right=ideal["right"], cfg=self.cfg.stereo)
+        lap("stereo")
+
+        # 5. triangulation and pose
+        objects = []
+        for mt in matches:
+            book = self._reconstruct(rig, segs, mt, desk_plane, len(objects))
+            if book is not None:
+                objects.append(book)
+        dropped = len(matches) - len(objects)
+        if dropped:
+            warnings.append(f"{dropped} matched quad(s) dropped: not flat on the desk "
+                            "(tilt or height out of range)")
+        lap("pose")
+        return FrameResult(
+            objects=objects, desk_plane=None if desk_plane is None else desk_plane.copy(),
+            world_frame=rig.world_frame,
+            segmentation={cam: SegmentationInfo(T_H=segs[cam].T_H, T_HG=segs[cam].T_HG, y=segs[cam].y,
+                                                iterations=segs[cam].iterations,
+                                                n_quads=len(segs[cam]))
+                          for cam in ("left", "right")},
+            timing_ms=timing, warnings=warnings, T_world_left=rig.T_world_left.copy(),
+            lines={cam: segs[cam].lines for cam in segs})
+
+    # -- stages ---------------------------------------------------------------------------
+
+    def _check_sizes(self, left: NDArray[np.uint8], right: NDArray[np.uint8]) -> None:
+        if left.shape != right.shape:
+            raise ValueError(f"image sizes differ: left {left.shape[1]}x{left.shape[0]}, "
+                             f"right {right.shape[1]}x{right.shape[0]}")
+        w, h = self.rig.image_size  # type: ignore[misc]
+        if left.shape != (h, w):
+            raise ValueError(f"image size {left.shape[1]}x{left.shape[0]} does not match the "
+                             f"calibration's {w}x{h}")
+
+    def _find_marker(self, gray: dict[str, NDArray[np.uint8]],
+                     warnings: list[str]) -> NDArray[np.float64] | None:
+        """``T_world_marker`` in the rig's world, or None (with a warning) if not seen."""
+        rig = self.rig
+        found = {cam: marker.detect_marker(gray[cam], marker_id=self.cfg.marker_id,
+                                           intrinsics=rig.intrinsics(cam)) for cam in gray}
+        if found["left"] is None or found["right"] is None:
+            missing = " and ".join(c for c in ("left", "right") if found[c] is None)
+            warnings.append(f"marker {self.cfg.marker_id} not found in the {missing} image: "
+                            "whole image searched, desk plane unknown")
+            return None
+        try:
+            T_left_marker = marker.marker_pose_stereo(rig, found["left"].corners_px,
+                                                      found["right"].corners_px,
+                                                      side=self.cfg.marker_side)
+        except ValueError as exc:
+            warnings.append(f"marker pose failed ({exc}): whole image searched")
+            return None
+        return rig.T_world_left @ T_left_marker
+
+    def _roi_mask(self, rig: StereoRig, cam: Literal["left", "right"],
+                  T_world_marker: NDArray[np.float64] | None) -> NDArray[np.uint8] | None:
+        """The workspace as a volume — desk to ``roi_height`` above it — seen in the ideal image.
+
+        A cover lies above the desk: near the workspace's edge it is seen outside the desk-level
+        rectangle. In ideal (undistorted) pixels the image of the prism is the convex hull of
+        its two rectangles.
+        """
+        if T_world_marker is None:
+            return None
+        pts = []
+        for z in (0.0, self.cfg.roi_height):
+            lifted = T_world_marker @ geometry.make_transform(np.eye(3), [0.0, 0.0, z])
+            raw = marker.workspace_polygon(rig, cam, T_world_marker=lifted,
+                                           x=self.cfg.workspace_x, y=self.cfg.workspace_y)
+            if len(raw) >= 3:
+                pts.append(rig.undistort_points(raw, cam))
+        w, h = rig.image_size  # type: ignore[misc]
+        mask = np.zeros((h, w), np.uint8)
+        if pts:
+            hull = cv2.convexHull(np.vstack(pts).astype(np.float32))
+            cv2.fillConvexPoly(mask, np.rint(hull).astype(np.int32), 255)
+            if self.cfg.roi_margin_px > 0:
+                k = 2 * self.cfg.roi_margin_px + 1
+                mask = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+        return mask
+
+    def _reconstruct(self, rig: StereoRig, segs: dict[str, Segmentation], mt,  # type: ignore[no-untyped-def]
+                     desk_plane: NDArray[np.float64] | None, index: int) -> BookDetection | None:
+        c_left = segs["left"].corners[mt.left]
+        c_right = mt.corners_right
+        P = geometry.triangulate(rig.Q_L, rig.Q_R, c_left, c_right, method=self.cfg.triangulation)
+        if not np.all(np.isfinite(P)):
+            return None
+        try:
+            pose = geometry.pose_from_corners(P, desk_plane)
+        except ValueError:
+            return None
+        if desk_plane is not None:
+            tilt = np.degrees(np.arccos(np.clip(pose.R[:, 2] @ desk_plane[:3], -1, 1)))
+            if tilt > self.cfg.max_tilt_deg or not (0.0 < pose.size[2] <= self.cfg.stereo.max_height):
+                return None
+        reproj = np.concatenate([
+            np.linalg.norm(_project(rig.Q_L, P) - c_left, axis=1),
+            np.linalg.norm(_project(rig.Q_R, P) - c_right, axis=1)])
+        return BookDetection(
+            id=index, pose=pose, corners_world=P,
+            corners_left_px=rig.distort_points(c_left, "left"),
+            corners_right_px=rig.distort_points(c_right, "right"),
+            reprojection_error_px=float(reproj.mean()),
+            quality=float(min(segs["left"].support[mt.left], segs["right"].support[mt.right])),
+            stereo_error_px=mt.error_px)
+
+
+def _project(Q: NDArray[np.float64], P: NDArray[np.float64]) -> NDArray[np.float64]:
+    h = P @ Q[:, :3].T + Q[:, 3]
+    return h[:, :2] / h[:, 2:]
+
+
+def detect(left: NDArray[np.generic], right: NDArray[np.generic], rig: StereoRig, *,
+           method: str = "closed", cfg: DetectConfig | None = None) -> FrameResult:
+    """Find the books in one stereo pair (see :class:`Detector` for sequences).
+
+    Parameters
+    ----------
+    left, right : ndarray, shape (H, W) or (H, W, 3)
+        Raw images from the calibrated rig.
+    rig : StereoRig
+    method : str
+        Segmentation method (closed loop by default).
+    cfg : DetectConfig, optional
+        Full settings; its ``method`` is replaced by ``method``.
+
+    Returns
+    -------
+    FrameResult
+        Books with pose, cuboid and pixel corners; the same content as the detection JSON.
+    """
+    cfg = replace(cfg or DetectConfig(), method=method)
+    return Detector(rig, cfg).detect(left, right)
