@@ -6,8 +6,11 @@ Reconstruction of Boundary Segmented Objects in a Robotic Library Scenario" (ROV
 
 from rovis.calib import StereoRig, load_calibration, make_rig, save_calibration
 from rovis.geometry import BookPose, pose_from_corners, triangulate
+from rovis.pipeline import DetectConfig, Detector, detect
+from rovis.results import BookDetection, FrameResult
 
 __version__ = "0.1.0"
 
-__all__ = ["BookPose", "StereoRig", "load_calibration", "make_rig", "pose_from_corners",
-           "save_calibration", "triangulate", "__version__"]
+__all__ = ["BookDetection", "BookPose", "DetectConfig", "Detector", "FrameResult", "StereoRig",
+           "detect", "load_calibration", "make_rig", "pose_from_corners", "save_calibration",
+           "triangulate", "__version__"]

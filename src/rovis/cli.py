@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 from rovis import __version__
 
@@ -19,13 +21,147 @@ class InputError(ValueError):
 def _cmd_demo(args: argparse.Namespace) -> int:
     from rovis.demo import run_demo
 
-    table, json_path = run_demo(Path(args.out))
-    print("rovis demo: 3 books, true corners projected into a Bumblebee2-like rig with 0.3 px "
-          "noise,\nthen triangulated (DLT, eq. 5) and posed (eq. 6-7). World = desk marker frame.\n")
-    print(table)
-    print(f"\nwrote {json_path} and {json_path.parent / 'calib.yaml'}")
-    print("not built yet: scene rendering, segmentation and stereo matching; "
-          "this demo starts from corners, not images.")
+    report = run_demo(Path(args.out))
+    print(report.text)
+    print(f"\nwrote {Path(args.out)}/: " + ", ".join(p.name for p in report.files))
+    return 0
+
+
+def _cmd_detect(args: argparse.Namespace) -> int:
+    from rovis.calib import load_calibration
+    from rovis.pipeline import DetectConfig, Detector
+    from rovis.sequence import is_sequence_source
+
+    sequence = is_sequence_source(args.left) or is_sequence_source(args.right)
+    if not sequence:
+        for what, path in (("LEFT", args.left), ("RIGHT", args.right)):
+            if not Path(path).is_file():
+                raise InputError(f"{what}: {path}: image file not found")
+    rig = load_calibration(args.calib)
+    detector = Detector(rig, DetectConfig(method=args.method))
+    if sequence:
+        return _detect_sequence(args, detector)
+    return _detect_pair(args, detector)
+
+
+def _detect_pair(args: argparse.Namespace, detector: Any) -> int:
+    from rovis.imageio import read_gray
+    from rovis.io import write_text_atomic
+    from rovis.results import books_table
+
+    left, right = read_gray(args.left), read_gray(args.right)
+    result = detector.detect(left, right)
+    n = len(result.objects)
+    print(f"{args.left} | {args.right}: {n} book{'s' if n != 1 else ''} "
+          f"(method {args.method}, world = {result.world_frame} frame)")
+    if n:
+        print(books_table(result.objects))
+    for warning in result.warnings:
+        print(f"warning: {warning}")
+    written = []
+    if args.json:
+        doc = result.to_dict(left=str(args.left), right=str(args.right))
+        written.append(write_text_atomic(args.json, json.dumps(doc, indent=2) + "\n"))
+    written += _write_pictures(args, detector.rig, result, left, right, suffix="")
+    if written:
+        print("wrote " + ", ".join(str(p) for p in written))
+    return 0
+
+
+def _write_pictures(args: argparse.Namespace, rig: Any, result: Any, left: Any, right: Any, *,
+                    suffix: str) -> list[Path]:
+    """--overlay DIR/{prefix}left.png, right.png and --view F.png (F_NNNN.png in a sequence)."""
+    written: list[Path] = []
+    if args.overlay or args.view:
+        from rovis import viz
+        from rovis.io import write_image_atomic
+    if args.overlay:
+        for cam, image in (("left", left), ("right", right)):
+            name = f"{suffix}_{cam}.png" if suffix else f"{cam}.png"
+            written.append(write_image_atomic(Path(args.overlay) / name,
+                                              viz.overlay(image, result, cam, rig=rig)))
+    if args.view:
+        view = Path(args.view)
+        if suffix:
+            view = view.with_name(f"{view.stem}_{suffix}{view.suffix or '.png'}")
+        written.append(viz.world_view(result, view))
+    return written
+
+
+class _Progress:
+    """A one-line ``\r`` counter on stderr that other messages erase before they print; when
+    stderr is not a terminal (a log file), only the final count, on a line of its own."""
+
+    def __init__(self, total: int) -> None:
+        self.total, self.done, self.failed, self._shown = total, 0, 0, 0
+        self._live = sys.stderr.isatty()
+
+    def _text(self) -> str:
+        return (f"rovis detect: {self.done}/{self.total} frames"
+                + (f", {self.failed} skipped" if self.failed else ""))
+
+    def show(self) -> None:
+        if self._live:
+            text = self._text()
+            print("\r" + text, end="", file=sys.stderr, flush=True)
+            self._shown = len(text)
+
+    def clear(self) -> None:
+        if self._shown:
+            print("\r" + " " * self._shown + "\r", end="", file=sys.stderr, flush=True)
+            self._shown = 0
+
+    def finish(self) -> None:
+        self.clear()
+        print(self._text(), file=sys.stderr, flush=True)
+
+
+def _detect_sequence(args: argparse.Namespace, detector: Any) -> int:
+    from rovis.io import LinesWriter
+    from rovis.sequence import list_images, pair_images, run_sequence
+
+    pairs = pair_images(list_images(args.left, "LEFT", "left"),
+                        list_images(args.right, "RIGHT", "right"))
+    progress = _Progress(len(pairs))
+    writer = LinesWriter(args.json) if args.json else None
+    want_images = bool(args.overlay or args.view)
+    books = 0
+    interrupted = False
+    progress.show()
+    try:
+        for outcome in run_sequence(detector, pairs, keep_images=want_images):
+            progress.clear()
+            pair = outcome.pair
+            if writer is not None:
+                writer.write(json.dumps(outcome.to_dict()))
+            if outcome.result is None:
+                progress.failed += 1
+                print(f"rovis detect: skipped frame {pair.index} ({pair.left} | {pair.right}): "
+                      f"{outcome.error}", file=sys.stderr)
+            else:
+                n = len(outcome.result.objects)
+                books += n
+                print(f"{pair.index:5d}  {pair.left}  {n} book{'s' if n != 1 else ''}")
+                _write_pictures(args, detector.rig, outcome.result, outcome.left_image,
+                                outcome.right_image, suffix=f"{pair.index:04d}")
+            progress.done += 1
+            progress.show()
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        progress.finish()
+        if writer is not None:
+            writer.close()
+    ok = progress.done - progress.failed
+    print(f"{progress.done} of {len(pairs)} frames: {ok} detected "
+          f"({books} book{'s' if books != 1 else ''}), "
+          f"{progress.failed} skipped" + (", interrupted" if interrupted else "")
+          + (f"; wrote {args.json}" if writer is not None else ""))
+    if interrupted:
+        return 130
+    if ok == 0:
+        print("rovis detect: error: no frame could be processed", file=sys.stderr)
+        return EXIT_BAD_INPUT
     return 0
 
 
@@ -147,6 +283,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="rovis-demo", help="output folder (default: %(default)s)")
     p.set_defaults(func=_cmd_demo)
 
+    p = sub.add_parser("detect", help="find the books in a stereo pair, or in a sequence of "
+                                      "pairs; print them, write JSON and pictures")
+    p.add_argument("left", metavar="LEFT",
+                   help="left image; or a folder, or a quoted glob ('DS/scenes/*/left.png'), "
+                        "for a sequence")
+    p.add_argument("right", metavar="RIGHT", help="right image, folder or quoted glob; pairs by "
+                   "the name both share (left01/right01, 0000/left, 0000/right) or sorted order")
+    p.add_argument("--calib", required=True, help="calibration file (any supported format)")
+    p.add_argument("--method", default="closed",
+                   choices=["closed", "open", "auto-median", "auto-otsu", "lsd", "contour"],
+                   help="segmentation: closed loop (the paper's), open loop, or a baseline "
+                        "(default: %(default)s)")
+    p.add_argument("--json", metavar="F", help="write the detection JSON here (a sequence: "
+                                               "JSON Lines, one frame a line)")
+    p.add_argument("--overlay", metavar="DIR", help="write the images with what was found "
+                   "drawn on them: DIR/left.png, right.png (a sequence: NNNN_left.png …)")
+    p.add_argument("--view", metavar="F.png", help="write the world model, top and side view "
+                   "(a sequence: F_NNNN.png)")
+    p.set_defaults(func=_cmd_detect)
+
     p = sub.add_parser("calib", help="read a calibration in any supported format, print it, "
                                      "optionally write the canonical calib.yaml")
     p.add_argument("file", help="calib.yaml, Kalibr camchain, BoofCV stereo.yaml, Q_L/Q_R file, "
@@ -260,7 +416,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     try:
         return func(args)
-    except (ValueError, OSError) as exc:  # bad input: one line, no traceback
+    except (ValueError, OSError, ImportError) as exc:  # bad input: one line, no traceback
         print(f"rovis {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
 

@@ -29,3 +29,66 @@ def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:
         if os.path.exists(tmp):
             os.unlink(tmp)
     return path
+
+
+def write_image_atomic(path: str | os.PathLike[str], image: object) -> Path:
+    """Write an image (format from the suffix, e.g. ``.png``) via a temporary file and a rename.
+
+    Raises
+    ------
+    OSError
+        When OpenCV cannot encode the image in that format.
+    """
+    import cv2
+    import numpy as np
+
+    path = Path(path)
+    ok, buf = cv2.imencode(path.suffix or ".png", np.asarray(image))
+    if not ok:
+        raise OSError(f"{path}: could not encode the image")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(buf.tobytes())
+        publish(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
+class LinesWriter:
+    """A text file written line by line into a temporary file and renamed into place on
+    :meth:`close` (or leaving a ``with`` block, also on an exception or Ctrl-C), so the file
+    at ``path`` is never half-written: it holds every line written before the close.
+    """
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fd, self._tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", dir=self.path.parent)
+        self._fh = os.fdopen(fd, "w", encoding="utf-8")
+        self.lines = 0
+
+    def write(self, line: str) -> None:
+        """Append one line (a newline is added)."""
+        self._fh.write(line.rstrip("\n") + "\n")
+        self._fh.flush()
+        self.lines += 1
+
+    def close(self) -> Path:
+        if not self._fh.closed:
+            self._fh.close()
+            try:
+                publish(self._tmp, self.path)
+            finally:
+                if os.path.exists(self._tmp):
+                    os.unlink(self._tmp)
+        return self.path
+
+    def __enter__(self) -> LinesWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

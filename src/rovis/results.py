@@ -124,3 +124,18 @@ class FrameResult:
 
     def to_json(self, **extra: Any) -> str:
         return json.dumps(self.to_dict(**extra))
+
+
+def books_table(objects: list[BookDetection]) -> str:
+    """A fixed-width text table of detected books, one row each: id, centre (m), yaw (°),
+    cover size and height (mm), mean reprojection error (px)."""
+    header = (" id   center x      y      z [m]   yaw [°]   size [mm]    height [mm]"
+              "   reproj [px]")
+    rows = [header]
+    for obj in objects:
+        c, s = obj.pose.center, obj.pose.size * 1000.0
+        height = f"{s[2]:8.1f}" if np.isfinite(s[2]) else "       -"
+        rows.append(f"{obj.id:>3}   {c[0]:8.3f} {c[1]:6.3f} {c[2]:6.3f}   {obj.pose.yaw_deg:7.1f}"
+                    f"   {s[0]:5.0f} x {s[1]:3.0f}   {height}"
+                    f"      {obj.reprojection_error_px:8.2f}")
+    return "\n".join(rows)
