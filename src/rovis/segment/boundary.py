@@ -192,7 +192,8 @@ def refine_quad(grad: Gradients, corners: NDArray[np.float64], *,
         if n_in @ (center - a) < 0:
             n_in = -n_in
         if -n_in @ np.asarray(down) > 0.05:
-            shift = cover_edge_offset(grad, a, b, n_in)
+            across = float(np.max((corners - a) @ n_in))  # the quad's extent across this side
+            shift = cover_edge_offset(grad, a, b, n_in, max_px=min(25.0, 0.2 * across))
             a, b = a + shift * n_in, b + shift * n_in
         fit = refine_segment(grad, a, b)
         sides.append(fit if fit is not None else (0.5 * (a + b), d))
@@ -205,12 +206,13 @@ def refine_quad(grad: Gradients, corners: NDArray[np.float64], *,
 
 
 def cover_edge_offset(grad: Gradients, a: NDArray[np.float64], b: NDArray[np.float64],
-                      n_in: NDArray[np.float64], *, max_px: float = 40.0,
+                      n_in: NDArray[np.float64], *, max_px: float = 25.0,
                       min_ratio: float = 0.15, min_consistency: float = 0.6) -> float:
     """How far inside side ``a``–``b`` (px, along ``n_in``) the cover edge lies; 0 if here.
 
     The derivative across the side is sampled along it at offsets from −3 px (outside) to
-    ``max_px`` inside (at most a third of the way across the quad). An inner edge counts
+    ``max_px`` inside (a page block is at most ~25 px wide at these distances; a printed
+    frame further in must not be taken for it). An inner edge counts
     when the median profile peaks there with at least ``min_ratio`` of the outer edge's
     strength, and at least ``min_consistency`` of the samples along the side agree.
     """
