@@ -220,30 +220,10 @@ class Detector:
 
     def _roi_mask(self, rig: StereoRig, cam: Literal["left", "right"],
                   T_world_marker: NDArray[np.float64] | None) -> NDArray[np.uint8] | None:
-        """The workspace as a volume — desk to ``roi_height`` above it — seen in the ideal image.
-
-        A cover lies above the desk: near the workspace's edge it is seen outside the desk-level
-        rectangle. In ideal (undistorted) pixels the image of the prism is the convex hull of
-        its two rectangles.
-        """
         if T_world_marker is None:
             return None
-        pts = []
-        for z in (0.0, self.cfg.roi_height):
-            lifted = T_world_marker @ geometry.make_transform(np.eye(3), [0.0, 0.0, z])
-            raw = marker.workspace_polygon(rig, cam, T_world_marker=lifted,
-                                           x=self.cfg.workspace_x, y=self.cfg.workspace_y)
-            if len(raw) >= 3:
-                pts.append(rig.undistort_points(raw, cam))
-        w, h = rig.image_size  # type: ignore[misc]
-        mask = np.zeros((h, w), np.uint8)
-        if pts:
-            hull = cv2.convexHull(np.vstack(pts).astype(np.float32))
-            cv2.fillConvexPoly(mask, np.rint(hull).astype(np.int32), 255)
-            if self.cfg.roi_margin_px > 0:
-                k = 2 * self.cfg.roi_margin_px + 1
-                mask = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
-        return mask
+        return roi_mask(rig, cam, T_world_marker, x=self.cfg.workspace_x, y=self.cfg.workspace_y,
+                        height=self.cfg.roi_height, margin_px=self.cfg.roi_margin_px)
 
     def _reconstruct(self, rig: StereoRig, segs: dict[str, Segmentation], mt,  # type: ignore[no-untyped-def]
                      desk_plane: NDArray[np.float64] | None, index: int) -> BookDetection | None:
@@ -270,6 +250,36 @@ class Detector:
             reprojection_error_px=float(reproj.mean()),
             quality=float(min(segs["left"].support[mt.left], segs["right"].support[mt.right])),
             stereo_error_px=mt.error_px)
+
+
+def roi_mask(rig: StereoRig, camera: Literal["left", "right"], T_world_marker: NDArray[np.float64], *,
+             x: tuple[float, float] = marker.WORKSPACE_X, y: tuple[float, float] = marker.WORKSPACE_Y,
+             height: float = 0.10, margin_px: int = 8) -> NDArray[np.uint8]:
+    """The workspace as a volume — desk to ``height`` above it — seen in the ideal image.
+
+    A cover lies above the desk: near the workspace's edge it is seen outside the desk-level
+    rectangle. In ideal (undistorted) pixels the image of the prism is the convex hull of
+    its two rectangles; it is grown by ``margin_px``.
+
+    Returns
+    -------
+    ndarray, shape (H, W), uint8 — 255 inside.
+    """
+    pts = []
+    for z in (0.0, height):
+        lifted = T_world_marker @ geometry.make_transform(np.eye(3), [0.0, 0.0, z])
+        raw = marker.workspace_polygon(rig, camera, T_world_marker=lifted, x=x, y=y)
+        if len(raw) >= 3:
+            pts.append(rig.undistort_points(raw, camera))
+    w, h = rig.image_size  # type: ignore[misc]
+    mask = np.zeros((h, w), np.uint8)
+    if pts:
+        hull = cv2.convexHull(np.vstack(pts).astype(np.float32))
+        cv2.fillConvexPoly(mask, np.rint(hull).astype(np.int32), 255)
+        if margin_px > 0:
+            k = 2 * margin_px + 1
+            mask = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+    return mask
 
 
 def _project(Q: NDArray[np.float64], P: NDArray[np.float64]) -> NDArray[np.float64]:

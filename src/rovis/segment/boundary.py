@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from rovis.segment.edges import Gradients, canny
 from rovis.segment.lines import Lines, hough_lines, intersect, refine_segment, support_profile
 from rovis.segment.quads import CoverSelection, QuadConfig, Quads, candidate_quads, order_corners
-from rovis.segment.quality import AS_DESCRIBED, quality
+from rovis.segment.quality import PRINTED, quality
 
 
 @dataclass(frozen=True)
@@ -35,7 +35,7 @@ class SegmentConfig:
     quality_sign : {-1, +1}
         Exponent sign of eq. 2 (see :mod:`rovis.segment.quality`).
     open_T_H, open_T_HG : float, int
-        The open loop's fixed thresholds (tuned at 500 lx).
+        The open loop's fixed thresholds, tuned once at 500 lx (scripts/tune_open_loop.py).
     max_inner : int
         Most T_HG values the inner loop evaluates per T_H.
     max_edge_frac : float
@@ -50,9 +50,9 @@ class SegmentConfig:
     n_max: int = 100
     T_H_range: tuple[float, float] = (12.0, 480.0)
     T_HG_min: int = 30
-    quality_sign: int = AS_DESCRIBED
-    open_T_H: float = 100.0
-    open_T_HG: int = 60
+    quality_sign: int = PRINTED  # measured: see docs/segmentation.md
+    open_T_H: float = 100.0  # scripts/tune_open_loop.py, 500 lx
+    open_T_HG: int = 30
     coarse_steps: int = 5
     refine_steps: int = 2
     warm_step: float = 1.25
