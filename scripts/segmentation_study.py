@@ -41,7 +41,7 @@ def main() -> None:
     stats: dict[tuple[str, int], dict[str, list]] = defaultdict(lambda: defaultdict(list))
     for i in range(args.n):
         sc = sample_scene(args.seed + i)
-        r = render(sc)
+        r = render(sc, args.seed + i)  # seeded sensor noise: reproducible
         rig = sc.rig
         K1, D1 = rig.K1, rig.D1
         maps = cv2.initUndistortRectifyMap(K1, D1, None, K1, rig.image_size, cv2.CV_16SC2)

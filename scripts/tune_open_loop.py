@@ -34,7 +34,7 @@ def main() -> None:
     frames = []
     for i in range(args.n):
         sc = sample_scene(args.seed + i, lux=500.0, light="artificial")
-        r, rig = render(sc), sc.rig
+        r, rig = render(sc, args.seed + i), sc.rig  # seeded sensor noise
         maps = cv2.initUndistortRectifyMap(rig.K1, rig.D1, None, rig.K1, rig.image_size, cv2.CV_16SC2)
         ideal = cv2.remap(r.left, *maps, cv2.INTER_LINEAR)
         truth = []

@@ -152,6 +152,15 @@ class SupportProfile:
 
     cum: NDArray[np.int32]  # (N, L + 1)
     t0: NDArray[np.float64]  # (N,)
+    t_in: NDArray[np.float64] | None = None  # (N, 2): where each line is inside the image
+
+    def visible(self, line: NDArray[np.intp], ta: NDArray[np.float64],
+                tb: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The part ``[lo, hi]`` of each segment inside the image (``hi < lo`` if none)."""
+        lo, hi = np.minimum(ta, tb), np.maximum(ta, tb)
+        if self.t_in is None:
+            return lo, hi
+        return np.maximum(lo, self.t_in[line, 0]), np.minimum(hi, self.t_in[line, 1])
 
     def hits(self, line: NDArray[np.intp], ta: NDArray[np.float64],
              tb: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -195,7 +204,10 @@ def support_profile(lines: Lines, edges: NDArray[np.uint8], grad: Gradients | No
     hit[inside] = hit_in
     cum = np.zeros((len(lines), len(t) + 1), dtype=np.int32)
     np.cumsum(hit, axis=1, out=cum[:, 1:])
-    return SupportProfile(cum, t_c - half)
+    first = np.where(inside.any(axis=1), np.argmax(inside, axis=1), len(t))
+    last = np.where(inside.any(axis=1), len(t) - 1 - np.argmax(inside[:, ::-1], axis=1), -1)
+    t_in = np.column_stack([t_c - half + first, t_c - half + last])
+    return SupportProfile(cum, t_c - half, t_in)
 
 
 def refine_segment(grad: Gradients, p_a: NDArray[np.float64], p_b: NDArray[np.float64], *,

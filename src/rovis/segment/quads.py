@@ -35,6 +35,8 @@ class QuadConfig:
     max_overlap: float = 0.15  # of the smaller quad, between two accepted covers
     nested_min_area: float = 0.6  # a cover fills at least this much of its outline
     duplicate_px: float = 3.0  # candidates with all corners this close are one
+    outside_frac: float = 0.25  # corners may lie this far outside the image (of its size)
+    min_in_view: float = 0.6  # ...if every side is at least this much in view
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,7 +104,9 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     dth = np.minimum(dth, np.pi - dth)
     X, T = _intersections(lines)
     h, w = image_shape
-    inside = ((X[..., 0] > -2) & (X[..., 0] < w + 1) & (X[..., 1] > -2) & (X[..., 1] < h + 1))
+    # A corner may lie outside the image (a book cut by the frame): its lines still place it.
+    m = cfg.outside_frac * max(h, w)
+    inside = ((X[..., 0] > -m) & (X[..., 0] < w + m) & (X[..., 1] > -m) & (X[..., 1] < h + m))
     corner = (dth > np.radians(cfg.min_corner_deg)) & inside & inside.T
     ci, cj = np.nonzero(np.triu(corner, 1))
     ok = _arm(profile, ci, T[ci, cj], cfg) & _arm(profile, cj, T[cj, ci], cfg)
@@ -136,10 +140,14 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     ok = (length.min(axis=1) >= cfg.min_side_px) & (length.max(axis=1) <= cfg.max_side_px)
     side_lines, ta, tb, length = side_lines[ok], ta[ok], tb[ok], length[ok]
     trim = np.minimum(cfg.corner_trim_px, 0.25 * length)
-    lo, hi = np.minimum(ta, tb) + trim, np.maximum(ta, tb) - trim
-    hits = profile.hits(side_lines.ravel(), lo.ravel(), hi.ravel()).reshape(-1, 4)
-    support = hits / np.maximum(hi - lo, 1.0)
-    ok = support.min(axis=1) >= cfg.min_support
+    lo, hi = profile.visible(side_lines.ravel(), (np.minimum(ta, tb) + trim).ravel(),
+                             (np.maximum(ta, tb) - trim).ravel())
+    lo, hi = lo.reshape(-1, 4), hi.reshape(-1, 4)
+    seen = np.maximum(hi - lo, 0.0)  # the part of each side inside the image
+    hits = profile.hits(side_lines.ravel(), lo.ravel(), np.maximum(hi, lo).ravel()).reshape(-1, 4)
+    support = hits / np.maximum(seen, 1.0)
+    ok = (support.min(axis=1) >= cfg.min_support) & \
+        (seen.min(axis=1) >= cfg.min_in_view * np.maximum(length - 2 * trim, 1.0).min(axis=1))
     side_lines, hits, support = side_lines[ok], hits[ok], support[ok]
     s0, s1, s2, s3 = side_lines.T
     corners = np.stack([X[s3, s0], X[s0, s1], X[s1, s2], X[s2, s3]], axis=1)  # corner s starts side s
