@@ -9,6 +9,7 @@ block seen obliquely) loses to the cover nested in it.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import cv2
@@ -37,6 +38,7 @@ class QuadConfig:
     duplicate_px: float = 3.0  # candidates with all corners this close are one
     outside_frac: float = 0.25  # corners may lie this far outside the image (of its size)
     min_in_view: float = 0.6  # ...if every side is at least this much in view
+    max_candidates: int = 4000  # per edge map, strongest first (bounds the time on busy texture)
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,7 +125,7 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     cycles = []
     for p in np.nonzero(common.sum(axis=1) >= 2)[0]:
         js = np.nonzero(common[p])[0]
-        a, b = np.triu_indices(len(js), 1)
+        a, b = _pairs(len(js))
         j, l = js[a], js[b]
         keep = par[j, l]
         if keep.any():
@@ -149,6 +151,9 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     ok = (support.min(axis=1) >= cfg.min_support) & \
         (seen.min(axis=1) >= cfg.min_in_view * np.maximum(length - 2 * trim, 1.0).min(axis=1))
     side_lines, hits, support = side_lines[ok], hits[ok], support[ok]
+    if len(side_lines) > cfg.max_candidates:  # busy texture: keep the best-supported
+        best = np.argsort(-hits.sum(axis=1), kind="stable")[:cfg.max_candidates]
+        side_lines, hits, support = side_lines[best], hits[best], support[best]
     s0, s1, s2, s3 = side_lines.T
     corners = np.stack([X[s3, s0], X[s0, s1], X[s1, s2], X[s2, s3]], axis=1)  # corner s starts side s
     area = 0.5 * np.abs(_shoelace(corners))
@@ -157,6 +162,16 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     quads = Quads(side_lines[keep], corners[keep], support[keep], hits[keep].sum(axis=1),
                   lines.votes[side_lines[keep]].min(axis=1))
     return quads
+
+
+@functools.lru_cache(maxsize=256)
+def _pairs(n: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """``np.triu_indices(n, 1)``, cached: the corner-graph search asks for it thousands of
+    times per image with a handful of sizes."""
+    a, b = np.triu_indices(n, 1)
+    a.setflags(write=False)
+    b.setflags(write=False)
+    return a, b
 
 
 def _arm(profile: SupportProfile, line: NDArray[np.intp], t: NDArray[np.float64],
@@ -227,9 +242,10 @@ class CoverSelection:
         maybe = (self.near & (shared >= 2) & (areas[:, None] < areas[None, :])
                  & (areas[:, None] >= cfg.nested_min_area * areas[None, :]))
         self.covers_of: list[list[int]] = [[] for _ in range(len(quads))]  # outline -> covers
-        for small, big in zip(*np.nonzero(maybe)):
-            if _inside(quads.corners[small], quads.corners[big]):
-                self.covers_of[big].append(int(small))
+        small, big = np.nonzero(maybe)
+        nested = _inside_convex(quads.corners[small], quads.corners[big])
+        for s_, b_ in zip(small[nested], big[nested]):
+            self.covers_of[b_].append(int(s_))
         self.order = np.argsort(-quads.n_f, kind="stable")
         self._conflict: dict[tuple[int, int], bool] = {}
 
@@ -259,21 +275,32 @@ def select_covers(quads: Quads, cfg: QuadConfig = QuadConfig()) -> Quads:
 
 
 def _distinct(quads: Quads, tol_px: float) -> tuple[Quads, NDArray[np.int64]]:
-    """Greedy by N_f: drop candidates whose four corners all lie within ``tol_px`` of a
-    stronger one's (the same cover from neighbouring lines). Returns the kept quads and,
-    per kept quad, the highest T_HG at which any member of its group exists."""
-    corners = _canonical(quads.corners)
+    """Greedy by N_f: a candidate whose four corners all lie within ``tol_px`` of a stronger
+    kept one's joins that one's group (the same cover from neighbouring lines). Kept quads are
+    hashed by their centroid, so each candidate is compared with a few only. Returns the
+    kept quads and, per kept quad, the highest T_HG at which any member of its group exists."""
+    if len(quads) == 0:
+        return quads, np.zeros(0, np.int64)
     order = np.argsort(-quads.n_f, kind="stable")
-    corners, remaining = corners[order], np.ones(len(order), bool)
-    kept, votes = [], []
-    for a in range(len(order)):
-        if not remaining[a]:
-            continue
-        same = remaining & (np.abs(corners - corners[a]).max(axis=(1, 2)) <= tol_px)
-        kept.append(order[a])
-        votes.append(quads.min_votes[order[same]].max())
-        remaining &= ~same
-    return quads.take(np.asarray(kept, dtype=np.intp)), np.asarray(votes, dtype=np.int64)
+    flat = _canonical(quads.corners[order]).reshape(len(order), 8).tolist()
+    votes_in = quads.min_votes[order].tolist()
+    grid: dict[tuple[int, int], list[int]] = {}
+    kept: list[int] = []
+    votes: list[int] = []
+    for a, c in enumerate(flat):
+        # Hash on the centroid: duplicates have centroids within tol_px too, while the many
+        # quads that merely share a corner spread over many cells.
+        cx = int((c[0] + c[2] + c[4] + c[6]) / 4 // tol_px)
+        cy = int((c[1] + c[3] + c[5] + c[7]) / 4 // tol_px)
+        home = min((g for dx in (-1, 0, 1) for dy in (-1, 0, 1) for g in grid.get((cx + dx, cy + dy), ())
+                    if max(abs(u - v) for u, v in zip(flat[kept[g]], c)) <= tol_px), default=None)
+        if home is None:
+            grid.setdefault((cx, cy), []).append(len(kept))
+            kept.append(a)
+            votes.append(votes_in[a])
+        else:  # joins the earliest (strongest) group within reach
+            votes[home] = max(votes[home], votes_in[a])
+    return quads.take(order[np.asarray(kept, dtype=np.intp)]), np.asarray(votes, dtype=np.int64)
 
 
 def _canonical(c: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -284,9 +311,17 @@ def _canonical(c: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.take_along_axis(c, idx[..., None], axis=1)
 
 
-def _inside(inner: NDArray[np.float64], outer: NDArray[np.float64], tol: float = 2.0) -> bool:
-    contour = outer.astype(np.float32).reshape(-1, 1, 2)
-    return all(cv2.pointPolygonTest(contour, (float(x), float(y)), True) >= -tol for x, y in inner)
+def _inside_convex(inner: NDArray[np.float64], outer: NDArray[np.float64],
+                   tol: float = 2.0) -> NDArray[np.bool_]:
+    """For quad pairs (M, 4, 2): are all of ``inner``'s corners inside convex ``outer``
+    (within ``tol`` px)? Vectorised over the pairs."""
+    if len(inner) == 0:
+        return np.zeros(0, bool)
+    o = _canonical(outer)  # clockwise on screen: inside is to the right of every edge
+    edge = np.roll(o, -1, axis=1) - o  # (M, 4, 2)
+    rel = inner[:, None, :, :] - o[:, :, None, :]  # (M, 4 edges, 4 points, 2)
+    cross = edge[:, :, None, 0] * rel[..., 1] - edge[:, :, None, 1] * rel[..., 0]
+    return np.all(cross >= -tol * np.linalg.norm(edge, axis=2)[:, :, None], axis=(1, 2))
 
 
 def _overlap(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
