@@ -1,15 +1,18 @@
-"""Benchmarks (``rovis bench``): one-core timings with median and spread."""
+"""Benchmarks (``rovis bench``): one-core timings with median and spread — the whole pipeline
+per frame and stage on synthetic scenes, and triangulation."""
 
 from __future__ import annotations
 
+import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from rovis import geometry
-from rovis.calib import make_rig
+from rovis.calib import StereoRig, make_rig
 
 
 @dataclass(frozen=True)
@@ -65,3 +68,209 @@ def bench_triangulation(n_points: int = 1_000_000, *, repeats: int = 7,
 def _project(Q: np.ndarray, P: np.ndarray) -> np.ndarray:
     h = P @ Q[:, :3].T + Q[:, 3]
     return h[:, :2] / h[:, 2:]
+
+
+# --------------------------------------------------------------------------- the pipeline
+
+PIPELINE_STAGES = ("marker", "undistort", "gradients", "segmentation", "stereo", "pose")
+
+
+@dataclass(frozen=True)
+class PipelineTiming:
+    """Per-frame times of one method on one core: ``stages`` (ms, per stage of
+    ``FrameResult.timing_ms``) and ``total_ms`` (wall time of ``Detector.detect``)."""
+
+    method: str
+    stages: dict[str, np.ndarray]  # stage -> shape (n,)
+    total_ms: np.ndarray  # shape (n,)
+    books: int  # books found over all frames
+
+    @property
+    def fps(self) -> float:
+        """Frames per second on one core over all the frames (comparable with the pool's)."""
+        return 1e3 * len(self.total_ms) / float(np.sum(self.total_ms))
+
+
+@dataclass(frozen=True)
+class PipelineBench:
+    """What ``rovis bench pipeline`` measured."""
+
+    n: int
+    size: tuple[int, int]
+    protocol: str
+    method: str
+    timings: dict[str, PipelineTiming]  # method -> timing; ``method`` and closed/open
+    workers: int
+    fps_all_cores: float | None  # frames/s of ``method`` over a pool of ``workers`` processes
+
+    @property
+    def segmentation_ratio(self) -> float | None:
+        """Median segmentation time of closed loop over open loop."""
+        if "closed" not in self.timings or "open" not in self.timings:
+            return None
+        closed = np.median(self.timings["closed"].stages["segmentation"])
+        opened = np.median(self.timings["open"].stages["segmentation"])
+        return float(closed / opened) if opened > 0 else None
+
+    def text(self) -> str:
+        """The table ``rovis bench`` prints."""
+        w, h = self.size
+        methods = list(self.timings)
+        lines = [f"pipeline: {self.n} synthetic scenes ({self.protocol}), {w}x{h} stereo pairs, "
+                 f"one core (cv2.setNumThreads(1)), detector reset before each frame; "
+                 f"ms per frame, median (IQR)"]
+        lines.append(f"{'stage':<14}" + "".join(f"{m:>26}" for m in methods))
+
+        def cell(a: np.ndarray) -> str:
+            q1, med, q3 = np.percentile(a, [25, 50, 75])
+            return f"{med:9.1f} ({q1:7.1f}-{q3:7.1f})"
+
+        for stage in PIPELINE_STAGES:
+            lines.append(f"{stage:<14}" + "".join(f"{cell(self.timings[m].stages[stage]):>26}"
+                                                  for m in methods))
+        lines.append(f"{'total':<14}" + "".join(f"{cell(self.timings[m].total_ms):>26}"
+                                                for m in methods))
+        lines.append(f"{'books found':<14}" + "".join(f"{self.timings[m].books:>26}"
+                                                      for m in methods))
+        ratio = self.segmentation_ratio
+        if ratio is not None:
+            lines.append(f"segmentation time, closed / open loop: {ratio:.2f}x (medians)")
+        t = self.timings[self.method]
+        rate = f"{self.method}: {t.fps:.2f} frames/s on one core"
+        if self.fps_all_cores is not None:
+            rate += (f", {self.fps_all_cores:.2f} frames/s on {self.workers} cores "
+                     f"(process pool over the {self.n} frames)")
+        lines.append(rate)
+        return "\n".join(lines)
+
+
+def scaled_rig(rig: StereoRig, size: tuple[int, int]) -> StereoRig:
+    """The same cameras seen at another image size: intrinsics scaled about the pixel centres
+    (``u' + ½ = s·(u + ½)``), distortion (in normalised coordinates) unchanged."""
+    w0, h0 = rig.image_size  # type: ignore[misc]
+    sx, sy = size[0] / w0, size[1] / h0
+    S = np.array([[sx, 0.0, (sx - 1) / 2], [0.0, sy, (sy - 1) / 2], [0.0, 0.0, 1.0]])
+    return StereoRig.from_arrays(K1=S @ rig.K1, D1=rig.D1, K2=S @ rig.K2, D2=rig.D2, R=rig.R,
+                                 T=rig.T, image_size=size, T_world_left=rig.T_world_left,
+                                 world_frame=rig.world_frame)
+
+
+def render_frames(n: int, *, size: tuple[int, int] = (1024, 768), protocol: str = "mixed",
+                  seed: int = 0) -> tuple[StereoRig, list[tuple[np.ndarray, np.ndarray]]]:
+    """``n`` synthetic stereo pairs (:mod:`rovis.synth`) and their rig, resized to ``size``
+    when it is not the renderer's own."""
+    from rovis.synth.dataset import dataset_rig, dataset_scenes
+    from rovis.synth.render import render
+
+    rig = dataset_rig(seed)
+    frames = []
+    for i, scene in dataset_scenes(protocol, n, seed):
+        r = render(scene, np.random.default_rng([seed, 9, i]))
+        frames.append((r.left, r.right))
+    if tuple(size) != tuple(rig.image_size):  # type: ignore[arg-type]
+        interp = cv2.INTER_AREA if size[0] < rig.image_size[0] else cv2.INTER_LINEAR  # type: ignore[index]
+        frames = [(cv2.resize(a, size, interpolation=interp),
+                   cv2.resize(b, size, interpolation=interp)) for a, b in frames]
+        rig = scaled_rig(rig, size)
+    return rig, frames
+
+
+def time_pipeline(rig: StereoRig, frames: list[tuple[np.ndarray, np.ndarray]],
+                  method: str) -> PipelineTiming:
+    """Per-frame and per-stage times of one Detector over ``frames``, on one core; the
+    detector is reset before each frame, and a first warm-up frame is not counted."""
+    from rovis.pipeline import DetectConfig, Detector
+
+    cv2.setNumThreads(1)
+    detector = Detector(rig, DetectConfig(method=method))
+    detector.detect(*frames[0])  # warm-up
+    stages: dict[str, list[float]] = {s: [] for s in PIPELINE_STAGES}
+    total, books = [], 0
+    for left, right in frames:
+        detector.reset()
+        t0 = time.perf_counter()
+        result = detector.detect(left, right)
+        total.append(1e3 * (time.perf_counter() - t0))
+        books += len(result.objects)
+        for s in PIPELINE_STAGES:
+            stages[s].append(result.timing_ms.get(s, 0.0))
+    return PipelineTiming(method, {s: np.array(v) for s, v in stages.items()}, np.array(total),
+                          books)
+
+
+_BENCH: dict[str, object] = {}
+
+
+def _bench_init(rig: StereoRig, method: str, frames: list[tuple[np.ndarray, np.ndarray]]) -> None:
+    from rovis.pipeline import DetectConfig, Detector
+
+    cv2.setNumThreads(1)
+    detector = Detector(rig, DetectConfig(method=method))
+    detector.detect(*frames[0])  # warm-up
+    _BENCH.update(detector=detector, frames=frames)
+
+
+def _bench_ready() -> int:
+    return os.getpid()
+
+
+def _bench_frame(i: int) -> int:
+    detector, frames = _BENCH["detector"], _BENCH["frames"]
+    detector.reset()  # type: ignore[attr-defined]
+    return len(detector.detect(*frames[i]).objects)  # type: ignore[attr-defined, index]
+
+
+def rate_all_cores(rig: StereoRig, frames: list[tuple[np.ndarray, np.ndarray]], method: str,
+                   workers: int) -> float:
+    """Frames per second of ``method`` over a process pool of ``workers`` (one Detector and
+    one OpenCV thread each); the pool's start-up and warm-up are not counted."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, wait
+
+    # spawn, not fork: a child forked after OpenCV's thread pool has run can deadlock in it
+    with ProcessPoolExecutor(max_workers=workers, initializer=_bench_init,
+                             initargs=(rig, method, frames),
+                             mp_context=multiprocessing.get_context("spawn")) as pool:
+        wait([pool.submit(_bench_ready) for _ in range(workers)])
+        t0 = time.perf_counter()
+        list(pool.map(_bench_frame, range(len(frames)), chunksize=1))
+        return len(frames) / (time.perf_counter() - t0)
+
+
+def cpu_count() -> int:
+    """Cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def bench_pipeline(n: int = 30, *, size: tuple[int, int] = (1024, 768), method: str = "closed",
+                   workers: int | None = None, protocol: str = "mixed", seed: int = 0,
+                   progress: Callable[[str], None] | None = None) -> PipelineBench:
+    """Time the whole pipeline per frame and per stage (``rovis bench``).
+
+    ``n`` synthetic scenes are rendered once; ``method`` is timed on one core, and so are
+    closed and open loop (for their segmentation-time ratio); then ``method``'s rate over a
+    process pool of ``workers`` (default: all cores; none with one core).
+    """
+    from rovis.pipeline import METHODS
+
+    if n <= 0:
+        raise ValueError(f"n: expected a positive integer, got {n}")
+    if method not in METHODS:
+        raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
+    workers = cpu_count() if workers is None else workers
+    say = progress or (lambda text: None)
+    say(f"rovis bench: rendering {n} scenes")
+    rig, frames = render_frames(n, size=size, protocol=protocol, seed=seed)
+    timings = {}
+    for m in dict.fromkeys((method, "closed", "open")):
+        say(f"rovis bench: timing {m} on one core")
+        timings[m] = time_pipeline(rig, frames, m)
+    fps_all = None
+    if workers > 1:
+        say(f"rovis bench: timing {method} on {workers} cores")
+        fps_all = rate_all_cores(rig, frames, method, workers)
+    return PipelineBench(n=n, size=tuple(size), protocol=protocol, method=method,  # type: ignore[arg-type]
+                         timings=timings, workers=workers, fps_all_cores=fps_all)

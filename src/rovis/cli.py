@@ -248,9 +248,64 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     return 0
 
 
+def _methods(text: str) -> tuple[str, ...]:
+    from rovis.evaluate import METHODS
+
+    names = tuple(dict.fromkeys(m.strip() for m in text.split(",") if m.strip()))
+    bad = [m for m in names if m not in METHODS]
+    if bad or not names:
+        raise argparse.ArgumentTypeError(
+            f"expected a comma-separated list of {', '.join(METHODS)}, got {text!r}")
+    return names
+
+
+def _cmd_eval(args: argparse.Namespace) -> int:
+    from rovis import evaluate
+
+    if args.dask is not None and args.workers != 1:
+        raise InputError("--dask and --workers: give one (the cluster has its own workers)")
+    ds = Path(args.dataset)
+    evaluate.list_scenes(ds)  # a folder that is not a dataset: one line, before any work
+    where = (f"Dask scheduler {args.dask}" if args.dask else
+             f"{args.workers} worker process{'es' if args.workers != 1 else ''}"
+             if args.workers > 1 else "1 process")
+    print(f"rovis eval {ds}: methods {', '.join(args.methods)}; {where}", file=sys.stderr)
+    ev = evaluate.evaluate(ds, args.methods, workers=args.workers, dask=args.dask,
+                           limit=args.limit, progress=evaluate.stderr_progress())
+    for item in ev.skipped:
+        print(f"rovis eval: skipped scene {item['scene']}: {item['reason']}", file=sys.stderr)
+    total = len(ev.scenes) + len(ev.skipped)
+    print(f"dataset {ds} ({ev.protocol or 'unknown protocol'}): {len(ev.scenes)} of {total} "
+          f"scenes scored, {len(ev.skipped)} skipped; matched within "
+          f"{evaluate.MATCH_RADIUS_M * 100:g} cm of the true centre, errors in the world frame")
+    if not ev.scenes:
+        print("rovis eval: error: no scene could be scored", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    print()
+    print(evaluate.report(ev))
+    if args.out:
+        try:
+            written = evaluate.write_results(ev, args.out, plots=not args.no_plots)
+        except ImportError as exc:
+            print(f"rovis eval: warning: {exc}; wrote {Path(args.out) / 'results.json'} only",
+                  file=sys.stderr)
+        else:
+            print("\nwrote " + ", ".join(str(p) for p in written))
+    print(f"\n{len(ev.skipped)} scene{'s' if len(ev.skipped) != 1 else ''} skipped")
+    return 0
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
     from rovis.bench import bench_triangulation
 
+    if args.what == "pipeline":
+        from rovis.bench import bench_pipeline
+
+        report = bench_pipeline(n=args.n, size=args.size, method=args.method,
+                                workers=args.workers, protocol=args.protocol, seed=args.seed,
+                                progress=lambda text: print(text, file=sys.stderr, flush=True))
+        print(report.text())
+        return 0
     if args.what == "triangulation":
         print(f"triangulation of {args.points:,} points, one core, {args.repeats} runs")
         for timing in bench_triangulation(args.points, repeats=args.repeats):
@@ -367,11 +422,48 @@ def build_parser() -> argparse.ArgumentParser:
                                                           "contact sheet of up to 12 scenes")
     p.set_defaults(func=_cmd_synth)
 
-    p = sub.add_parser("bench", help="benchmarks on one core")
-    p.add_argument("what", choices=["triangulation", "synth"], help="what to time")
+    p = sub.add_parser("eval", help="score the methods on a synthetic dataset: the paper's "
+                                    "Tables I/II beside its figures, results.json and plots")
+    p.add_argument("dataset", metavar="DATASET",
+                   help="a dataset folder (calib.yaml, scenes/NNNN/) as rovis synth writes")
+    p.add_argument("--methods", type=_methods, default=("closed", "open", "auto-median",
+                                                        "auto-otsu", "lsd", "contour"),
+                   help="comma-separated (default: closed,open,auto-median,auto-otsu,lsd,"
+                        "contour)")
+    p.add_argument("--workers", type=_positive_int, default=1,
+                   help="local worker processes (default: %(default)s)")
+    p.add_argument("--dask", metavar="ADDRESS", default=None,
+                   help="score on a Dask distributed scheduler instead (tcp://host:8786; "
+                        "the dataset must be at the same path there; needs rovis[dask])")
+    p.add_argument("--out", metavar="DIR", help="write DIR/results.json, report.txt and the "
+                                                "plots positions.png, yaw.png, lux.png")
+    p.add_argument("--no-plots", action="store_true", help="with --out: no plots")
+    p.add_argument("--limit", type=_positive_int, default=None,
+                   help="only the first N scenes")
+    p.set_defaults(func=_cmd_eval)
+
+    p = sub.add_parser("bench", help="benchmarks on one core: the pipeline per frame and stage "
+                                     "(default), triangulation, scene rendering")
+    p.add_argument("what", nargs="?", default="pipeline",
+                   choices=["pipeline", "triangulation", "synth"],
+                   help="what to time (default: %(default)s)")
+    p.add_argument("--n", type=_positive_int, default=30,
+                   help="pipeline: synthetic scenes (default: %(default)s)")
+    p.add_argument("--size", type=_image_size, default=(1024, 768),
+                   help="pipeline: image size WxH (default: 1024x768)")
+    p.add_argument("--method", default="closed",
+                   choices=["closed", "open", "auto-median", "auto-otsu", "lsd", "contour"],
+                   help="pipeline: the method timed; closed and open are both run for the "
+                        "segmentation-time ratio (default: %(default)s)")
+    p.add_argument("--protocol", choices=["table1", "table2", "mixed"], default="mixed",
+                   help="pipeline: the scenes' protocol (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="pipeline: scene seed (default: 0)")
+    p.add_argument("--workers", type=_positive_int, default=None,
+                   help="pipeline: processes for the all-cores rate (default: all cores)")
     p.add_argument("--points", type=_positive_int, default=1_000_000,
-                   help="points per run (default: %(default)s)")
-    p.add_argument("--repeats", type=_positive_int, default=7, help="runs (default: %(default)s)")
+                   help="triangulation: points per run (default: %(default)s)")
+    p.add_argument("--repeats", type=_positive_int, default=7,
+                   help="triangulation, synth: runs (default: %(default)s)")
     p.set_defaults(func=_cmd_bench)
     return parser
 
@@ -394,6 +486,16 @@ def _positive_float(text: str) -> float:
     if not value > 0 or value == float("inf"):
         raise argparse.ArgumentTypeError(f"expected a positive number, got {value}")
     return value
+
+
+def _image_size(text: str) -> tuple[int, int]:
+    parts = text.lower().split("x")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT like 1024x768, got {text!r}")
+    w, h = (int(p) for p in parts)
+    if not (64 <= w <= 8192 and 64 <= h <= 8192):
+        raise argparse.ArgumentTypeError(f"expected 64-8192 pixels a side, got {text!r}")
+    return w, h
 
 
 def _board_size(text: str) -> tuple[int, int]:

@@ -1,0 +1,223 @@
+"""``rovis eval`` (matching, error metrics, tables, workers, Dask, bad input) and
+``rovis bench`` (the pipeline benchmark)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rovis import evaluate as ev
+from rovis.cli import main
+from rovis.evaluate import Book, book_errors, match_books, score_books, yaw_error_deg
+from rovis.synth import write_dataset
+
+METHODS = ("closed", "open", "contour")  # the paper's pair and a fast baseline
+
+
+def _R(yaw_deg: float) -> np.ndarray:
+    c, s = np.cos(np.radians(yaw_deg)), np.sin(np.radians(yaw_deg))
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _book(center, yaw_deg, size, visible=True) -> Book:
+    return Book(np.asarray(center, float), _R(yaw_deg), np.asarray(size, float), visible)
+
+
+def _without_timing(records: list[dict]) -> list[dict]:
+    return [{k: v for k, v in r.items() if k != "timing_ms"} for r in records]
+
+
+# --------------------------------------------------------------------------- metrics
+
+
+def test_book_errors_are_estimate_minus_truth():
+    true = _book([0.30, 0.40, 0.030], 30.0, [0.200, 0.150, 0.030])
+    est = _book([0.304, 0.398, 0.031], 32.0, [0.205, 0.148, 0.032])
+    e = book_errors(true, est)
+    assert e["x"] == pytest.approx(0.004, abs=1e-12)  # 4 mm
+    assert e["y"] == pytest.approx(-0.002, abs=1e-12)
+    assert e["z"] == pytest.approx(0.001, abs=1e-12)
+    assert e["psi_deg"] == pytest.approx(2.0, abs=1e-9)
+    assert e["length"] == pytest.approx(0.005, abs=1e-12)
+    assert e["width"] == pytest.approx(-0.002, abs=1e-12)
+    assert e["height"] == pytest.approx(0.002, abs=1e-12)
+    no_height = Book(est.center, est.R, np.array([0.205, 0.148, np.nan]))
+    assert book_errors(true, no_height)["height"] is None
+
+
+def test_yaw_error_is_taken_modulo_180_and_modulo_90_for_squares():
+    rect, square = [0.20, 0.15, 0.03], [0.20, 0.195, 0.03]  # sides 5 cm / 0.5 cm apart
+    R = _R(30.0)
+    assert yaw_error_deg(R, rect, _R(30.0 + 180.0 + 1.0), rect) == pytest.approx(1.0)
+    assert yaw_error_deg(R, rect, _R(30.0 - 179.0), rect) == pytest.approx(1.0)
+    assert yaw_error_deg(R, rect, _R(30.0 + 89.0), rect) == pytest.approx(89.0)
+    assert yaw_error_deg(R, square, _R(30.0 + 89.0), square) == pytest.approx(-1.0)
+    assert yaw_error_deg(R, square, _R(30.0 + 270.0 + 2.0), square) == pytest.approx(2.0)
+    # the estimate calls its long side y: its long axis is what is compared
+    swapped = [0.15, 0.20, 0.03]
+    assert yaw_error_deg(R, rect, _R(30.0 - 90.0 + 0.5), swapped) == pytest.approx(0.5)
+    # the truth's long side may be its y axis too
+    assert yaw_error_deg(_R(120.0), swapped, _R(30.0 + 0.5), rect) == pytest.approx(0.5)
+
+
+def test_matching_is_one_to_one_hungarian_within_5_cm():
+    truth = [[0.0, 0.0, 0.03], [0.045, 0.0, 0.03]]
+    # Greedy nearest-truth would give d0 to book 1 and leave book 0 unmatched (d1 is 7 cm
+    # from it); the assignment matches both.
+    dets = [[0.025, 0.0, 0.03], [0.070, 0.0, 0.03], [0.30, 0.3, 0.03]]
+    assert match_books(truth, dets) == [(0, 0), (1, 1)]
+    # a decoy as close to book 0 as d0: still one detection per book, the other is a FP
+    books = [_book(c, 0.0, [0.2, 0.15, 0.03]) for c in truth]
+    found = [_book(c, 0.0, [0.2, 0.15, 0.03]) for c in dets + [[0.001, 0.0, 0.03]]]
+    score = score_books(books, found)
+    assert score["found"] == [3, 0]  # the decoy (1 mm) takes book 0, d0 (2 cm) book 1
+    assert score["false_positives"] == 2
+    assert [m["distance"] for m in score["matches"]] == pytest.approx([0.001, 0.02])
+    assert match_books(truth, [[0.0, 0.051, 0.03]]) == []  # 5.1 cm: no match
+    assert match_books([], dets) == [] and match_books(truth, np.empty((0, 3))) == []
+
+
+def test_summary_statistics_and_recall_of_well_visible_books():
+    books = [_book([0.1, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),
+             _book([0.4, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),
+             _book([0.4, 0.4, 0.03], 0.0, [0.2, 0.15, 0.03], visible=False)]
+    dets = [_book([0.101, 0.1, 0.03], 1.0, [0.2, 0.15, 0.03]),
+            _book([0.397, 0.1, 0.03], -3.0, [0.2, 0.15, 0.03]),
+            _book([0.8, 0.5, 0.03], 0.0, [0.2, 0.15, 0.03])]  # a false positive
+    record = {"books": [{"visible": b.visible} for b in books],
+              "methods": {"closed": score_books(books, dets)}}
+    s = ev.summarize_method([record, record], "closed")
+    assert (s["images"], s["books"], s["found"]) == (2, 6, 4)
+    assert s["recall"] == pytest.approx(4 / 6)
+    assert (s["visible_books"], s["visible_found"], s["recall_visible"]) == (4, 4, 1.0)
+    assert s["fp_per_image"] == 1.0
+    x = s["errors"]["x"]  # |X_e| = 1 mm and 3 mm, twice
+    assert (x["max"], x["mean"], x["std"], x["n"]) == pytest.approx((0.003, 0.002, 0.001, 4))
+    assert s["errors"]["psi_deg"]["mean"] == pytest.approx(2.0)
+    text = ev.method_table("closed", s, ev.PAPER_TABLE_I)
+    assert "Max error" in text and "St. deviation" in text and "paper Table I" in text
+    assert ev.lux_band(15.0) == "15-50 lx" and ev.lux_band(1200.0) == "500-1200 lx"
+    assert ev.lux_band(10.0) == "<15 lx" and ev.lux_band(None) is None
+
+
+def test_paper_figures_beside_ours():
+    assert ev.paper_reference("closed", "table1") is ev.PAPER_TABLE_I
+    assert ev.paper_reference("open", "table2").max == (0.6294, 0.2513, 0.7881, 34.0)
+    assert ev.paper_reference("closed", "table2").mean == (0.0101, 0.0054, 0.0038, 4.0)
+    assert ev.paper_reference("lsd", "table2") is None
+
+
+# --------------------------------------------------------------------------- end to end
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory) -> Path:
+    return write_dataset(tmp_path_factory.mktemp("eval") / "ds", protocol="table1", n=2, seed=5)
+
+
+@pytest.fixture(scope="module")
+def serial(dataset) -> ev.Evaluation:
+    return ev.evaluate(dataset, METHODS)
+
+
+def test_eval_cli_with_one_and_two_workers_gives_identical_results(dataset, serial, tmp_path,
+                                                                     capsys):
+    docs = []
+    for workers in (1, 2):
+        out = tmp_path / f"w{workers}"
+        assert main(["eval", str(dataset), "--methods", ",".join(METHODS), "--workers",
+                     str(workers), "--out", str(out)]) == 0
+        captured = capsys.readouterr()
+        assert "Max error" in captured.out and "paper Table I" in captured.out
+        assert "0 scenes skipped" in captured.out
+        assert "2/2 scenes" in captured.err
+        for name in ("results.json", "report.txt", "positions.png", "yaw.png", "lux.png"):
+            assert (out / name).stat().st_size > 0, name
+        docs.append(json.loads((out / "results.json").read_text()))
+    a, b = docs
+    assert a["n_scenes"] == 2 and a["protocol"] == "table1"
+    assert _without_timing(a["scenes"]) == _without_timing(b["scenes"])
+    assert a["summary"] == b["summary"] and a["breakdown"] == b["breakdown"]
+    assert _without_timing(a["scenes"]) == _without_timing(serial.to_dict()["scenes"])
+    assert set(a["summary"]) == set(METHODS)
+    assert list(a["breakdown"]["lux"]) == ["500-1200 lx"]
+    for scene in a["scenes"]:
+        assert set(scene["methods"]) == set(METHODS)
+        assert len(scene["books"]) == len(scene["methods"]["closed"]["found"])
+
+
+def test_dask_cluster_gives_the_local_results(dataset, serial):
+    distributed = pytest.importorskip("distributed",
+                                      reason="dask.distributed not installed (rovis[dask])")
+    with distributed.LocalCluster(n_workers=1, processes=False, threads_per_worker=1,
+                                  host="127.0.0.1", protocol="tcp://",
+                                  dashboard_address=None) as cluster:
+        remote = ev.evaluate(dataset, METHODS, dask=cluster.scheduler_address)
+    assert _without_timing(remote.scenes) == _without_timing(serial.scenes)
+    assert remote.summary() == serial.summary()
+
+
+def test_dask_missing_is_a_clear_error(dataset, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import fails
+    assert main(["eval", str(dataset), "--dask", "tcp://127.0.0.1:1", "--methods",
+                 "contour"]) == 2
+    assert "pip install 'rovis[dask]'" in capsys.readouterr().err
+
+
+def test_bad_scenes_are_skipped_named_and_counted(dataset, tmp_path, capsys):
+    ds = tmp_path / "ds"
+    shutil.copytree(dataset, ds)
+    shutil.copytree(ds / "scenes" / "0000", ds / "scenes" / "0002")
+    (ds / "scenes" / "0000" / "truth.json").write_text("{not json")
+    (ds / "scenes" / "0001" / "right.png").unlink()
+    assert main(["eval", str(ds), "--methods", "contour"]) == 0
+    captured = capsys.readouterr()
+    assert "skipped scene 0000: truth.json: unreadable" in captured.err
+    assert "skipped scene 0001: right.png: image file not found" in captured.err
+    assert "1 of 3 scenes scored, 2 skipped" in captured.out
+    assert "2 scenes skipped" in captured.out
+    doc = json.loads((dataset / "scenes" / "0000" / "truth.json").read_text())
+    del doc["books"][0]["R"]
+    (ds / "scenes" / "0002" / "truth.json").write_text(json.dumps(doc))
+    assert main(["eval", str(ds), "--methods", "contour"]) == 2  # nothing left to score
+    assert "books[0].R: missing" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("case", ["missing", "empty", "no-calib", "no-scenes"])
+def test_not_a_dataset_is_one_line_and_exit_2(dataset, tmp_path, capsys, case):
+    ds = tmp_path / "ds"
+    if case != "missing":
+        ds.mkdir()
+    if case == "no-calib":
+        shutil.copytree(dataset / "scenes", ds / "scenes")
+    if case == "no-scenes":
+        shutil.copy(dataset / "calib.yaml", ds)
+    assert main(["eval", str(ds)]) == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert len(err) == 1 and err[0].startswith("rovis eval: error:"), err
+    want = {"missing": "no such folder", "empty": "no calib.yaml",
+            "no-calib": "no calib.yaml", "no-scenes": "no scenes"}[case]
+    assert want in err[0]
+
+
+def test_eval_rejects_unknown_methods(dataset, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["eval", str(dataset), "--methods", "closed,magic"])
+    assert exc.value.code == 2
+    assert "magic" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- bench
+
+
+def test_bench_pipeline_runs_small(capsys):
+    assert main(["bench", "--n", "2", "--size", "512x384", "--workers", "2"]) == 0
+    out = capsys.readouterr().out
+    for word in ("segmentation", "undistort", "total", "closed / open", "frames/s on one core",
+                 "on 2 cores", "512x384"):
+        assert word in out, word
