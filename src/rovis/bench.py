@@ -52,7 +52,7 @@ def bench_triangulation(n_points: int = 1_000_000, *, repeats: int = 7,
     rng = np.random.default_rng(rng)
     rig = make_rig()
     P = rng.uniform([-0.5, -0.4, 0.8], [0.5, 0.4, 1.6], size=(n_points, 3))
-    p_L, p_R = (_project(Q, P) + rng.normal(0, 0.5, (n_points, 2)) for Q in (rig.Q_L, rig.Q_R))
+    p_L, p_R = (geometry.project(Q, P) + rng.normal(0, 0.5, (n_points, 2)) for Q in (rig.Q_L, rig.Q_R))
     out = []
     for method in ("dlt", "optimal"):
         geometry.triangulate(rig.Q_L, rig.Q_R, p_L[:1000], p_R[:1000], method=method)  # warm-up
@@ -64,10 +64,6 @@ def bench_triangulation(n_points: int = 1_000_000, *, repeats: int = 7,
         out.append(Timing(f"triangulate {method}", np.array(times), n_points))
     return out
 
-
-def _project(Q: np.ndarray, P: np.ndarray) -> np.ndarray:
-    h = P @ Q[:, :3].T + Q[:, 3]
-    return h[:, :2] / h[:, 2:]
 
 
 # --------------------------------------------------------------------------- the pipeline

@@ -8,14 +8,13 @@ through the Agg canvas: no display, no pyplot state.
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from rovis.io import publish
+from rovis.io import write_figure_atomic
 
 FIGURES = ("positions.png", "yaw.png", "lux.png")
 
@@ -31,16 +30,7 @@ def _mpl() -> tuple[Any, Any]:
 
 
 def _save(fig: Any, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format="png")
-        publish(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    return write_figure_atomic(fig, path)
 
 
 def _grid(n: int) -> tuple[int, int]:

@@ -76,6 +76,13 @@ def decompose_projection(Q: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.
     return K / K[2, 2], make_transform(R, t)
 
 
+def project(Q: ArrayLike, P: ArrayLike) -> NDArray[np.float64]:
+    """Pixels (N, 2) of world points ``P`` (N, 3) under a 3×4 projection ``Q`` (eq. 3)."""
+    Q = np.asarray(Q, dtype=np.float64)
+    h = np.asarray(P, dtype=np.float64).reshape(-1, 3) @ Q[:, :3].T + Q[:, 3]
+    return h[:, :2] / h[:, 2:]
+
+
 def fundamental_from_projections(Q_L: ArrayLike, Q_R: ArrayLike) -> NDArray[np.float64]:
     """Fundamental matrix ``F`` (3, 3) with ``p_R^T F p_L = 0`` (Hartley & Zisserman eq. 9.1)."""
     Q_L, Q_R = np.asarray(Q_L, dtype=np.float64), np.asarray(Q_R, dtype=np.float64)

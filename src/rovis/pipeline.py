@@ -241,8 +241,8 @@ class Detector:
             if tilt > self.cfg.max_tilt_deg or not (0.0 < pose.size[2] <= self.cfg.stereo.max_height):
                 return None
         reproj = np.concatenate([
-            np.linalg.norm(_project(rig.Q_L, P) - c_left, axis=1),
-            np.linalg.norm(_project(rig.Q_R, P) - c_right, axis=1)])
+            np.linalg.norm(geometry.project(rig.Q_L, P) - c_left, axis=1),
+            np.linalg.norm(geometry.project(rig.Q_R, P) - c_right, axis=1)])
         return BookDetection(
             id=index, pose=pose, corners_world=P,
             corners_left_px=rig.distort_points(c_left, "left"),
@@ -281,10 +281,6 @@ def roi_mask(rig: StereoRig, camera: Literal["left", "right"], T_world_marker: N
             mask = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
     return mask
 
-
-def _project(Q: NDArray[np.float64], P: NDArray[np.float64]) -> NDArray[np.float64]:
-    h = P @ Q[:, :3].T + Q[:, 3]
-    return h[:, :2] / h[:, 2:]
 
 
 def detect(left: NDArray[np.generic], right: NDArray[np.generic], rig: StereoRig, *,

@@ -19,6 +19,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
+from rovis import geometry
+
 _PATCH = (48, 36)  # rectified cover patch, px
 
 
@@ -134,12 +136,8 @@ def _segments(p_L: NDArray[np.float64], Q_L: NDArray[np.float64], Q_R: NDArray[n
     else:
         s_near = np.full(len(p_L), cfg.min_depth)
         s_far = np.full(len(p_L), cfg.max_depth)
-    return _project(Q_R, C + s_near[:, None] * rays), _project(Q_R, C + s_far[:, None] * rays)
+    return geometry.project(Q_R, C + s_near[:, None] * rays), geometry.project(Q_R, C + s_far[:, None] * rays)
 
-
-def _project(Q: NDArray[np.float64], P: NDArray[np.float64]) -> NDArray[np.float64]:
-    h = P @ Q[:, :3].T + Q[:, 3]
-    return h[:, :2] / h[:, 2:]
 
 
 def _point_segment_distance(p: NDArray[np.float64], a: NDArray[np.float64],

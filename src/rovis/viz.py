@@ -8,7 +8,6 @@ canvas, so no display and no global pyplot state are involved.
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal
@@ -20,7 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 from rovis import geometry, marker
 from rovis.calib import StereoRig
 from rovis.imageio import to_gray_u8
-from rovis.io import publish
+from rovis.io import write_figure_atomic
 from rovis.results import FrameResult
 
 Camera = Literal["left", "right"]
@@ -322,16 +321,7 @@ def world_view(result: FrameResult, path: str | os.PathLike[str], *,
     fig.suptitle(title or f"rovis world model — {frame}"
                  + ("" if desk_z is not None else ", desk plane unknown"), fontsize=11)
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format="png")
-        publish(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    return write_figure_atomic(fig, path)
 
 
 def _span(lo: float, hi: float, at_least: float) -> tuple[float, float]:

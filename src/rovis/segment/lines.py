@@ -107,11 +107,11 @@ def hough_lines(edges: NDArray[np.uint8], min_votes: int, *, grad: Gradients | N
         order = order[:3 * max_lines + 32]
     rho, theta, votes = rows[order, 0], rows[order, 1], rows[order, 2].astype(np.int64)
     rho = rho + x0 * np.cos(theta) + y0 * np.sin(theta)  # back to full-image coordinates
-    keep = _suppress_duplicates(rho, theta, rho_tol, theta_tol, max_lines)
+    keep = suppress_duplicates(rho, theta, rho_tol, theta_tol, max_lines)
     return Lines(rho[keep], theta[keep], votes[keep])
 
 
-def _suppress_duplicates(rho: NDArray[np.float64], theta: NDArray[np.float64], rho_tol: float,
+def suppress_duplicates(rho: NDArray[np.float64], theta: NDArray[np.float64], rho_tol: float,
                          theta_tol: float, max_lines: int | None) -> NDArray[np.intp]:
     """Indices of lines not within tolerance of a stronger kept line (input sorted by votes).
 

@@ -21,7 +21,7 @@ from rovis.segment.boundary import (Evaluation, SegmentConfig, Segmentation, eva
                                     roi_area)
 from rovis.segment.control import CascadeController
 from rovis.segment.edges import Gradients, canny
-from rovis.segment.lines import Lines, _suppress_duplicates, support_profile
+from rovis.segment.lines import Lines, suppress_duplicates, support_profile
 from rovis.segment.quads import CoverSelection, Quads, candidate_quads
 
 METHODS = ("closed", "open", "auto-median", "auto-otsu", "lsd", "contour")
@@ -96,7 +96,7 @@ def _lsd(gray: NDArray[np.uint8], grad: Gradients, cfg: SegmentConfig) -> Evalua
     rho = segs[:, 0] * np.cos(theta) + segs[:, 1] * np.sin(theta)
     order = np.argsort(-length)
     rho, theta, length = rho[order], theta[order], length[order]
-    keep = _suppress_duplicates(rho, theta, 3.0, np.radians(1.5), cfg.n_max)
+    keep = suppress_duplicates(rho, theta, 3.0, np.radians(1.5), cfg.n_max)
     lines = Lines(rho[keep], theta[keep], np.rint(length[keep]).astype(np.int64))
     drawn = np.zeros(grad.shape, np.uint8)  # the segments are LSD's "edge pixels"
     for x1, y1, x2, y2 in segs[order]:

@@ -269,11 +269,6 @@ class CoverSelection:
         return self.quads.take(np.asarray(kept, dtype=np.intp))
 
 
-def select_covers(quads: Quads, cfg: QuadConfig = QuadConfig()) -> Quads:
-    """One quad per book among ``quads`` (see :class:`CoverSelection`)."""
-    return CoverSelection(quads, cfg).at(0)
-
-
 def _distinct(quads: Quads, tol_px: float) -> tuple[Quads, NDArray[np.int64]]:
     """Greedy by N_f: a candidate whose four corners all lie within ``tol_px`` of a stronger
     kept one's joins that one's group (the same cover from neighbouring lines). Kept quads are
