@@ -150,3 +150,31 @@ def test_unknown_method_is_refused():
     img = np.zeros((10, 10), np.uint8)
     with pytest.raises(ValueError, match="method: expected one of closed, open"):
         segment(img, gradients(img), "magic")
+
+
+def test_duplicate_candidates_merge_into_the_strongest_within_reach():
+    from rovis.segment.quads import Quads, _canonical, _distinct
+
+    rng = np.random.default_rng(3)
+    base = rng.uniform(0, 600, (40, 1, 2)) + np.array([[0, 0], [80, 0], [80, 60], [0, 60]])
+    # each cover plus jittered copies (duplicates within 3 px) and a few just outside reach
+    corners = np.concatenate([base + rng.uniform(-j, j, base.shape) for j in (0, 1, 1.4, 3)])
+    n = len(corners)
+    quads = Quads(np.zeros((n, 4), np.intp), corners, np.ones((n, 4)), rng.uniform(100, 400, n),
+                  rng.integers(30, 90, n))
+    kept, votes = _distinct(quads, 3.0)
+    # the same greedy rule, written out pair by pair
+    order = np.argsort(-quads.n_f, kind="stable")
+    flat = _canonical(corners[order]).reshape(n, 8)
+    groups: list[int] = []
+    want_votes: list[int] = []
+    for a in range(n):
+        home = next((k for k, g in enumerate(groups) if np.abs(flat[g] - flat[a]).max() <= 3.0), None)
+        if home is None:
+            groups.append(a)
+            want_votes.append(int(quads.min_votes[order[a]]))
+        else:
+            want_votes[home] = max(want_votes[home], int(quads.min_votes[order[a]]))
+    np.testing.assert_array_equal(kept.corners, corners[order[groups]])
+    np.testing.assert_array_equal(votes, want_votes)
+    assert 40 <= len(kept) < n

@@ -9,12 +9,12 @@ block seen obliquely) loses to the cover nested in it.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from rovis.segment.lines import Lines, SupportProfile
 
@@ -122,18 +122,11 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     par = (dth < np.radians(cfg.parallel_deg)) & (sep >= cfg.min_side_px * 0.5) & (sep <= cfg.max_side_px)
     iu, ku = np.nonzero(np.triu(par, 1))
     common = corner[iu] & corner[ku]  # (pairs, n): lines crossing both with a corner
-    cycles = []
-    for p in np.nonzero(common.sum(axis=1) >= 2)[0]:
-        js = np.nonzero(common[p])[0]
-        a, b = _pairs(len(js))
-        j, l = js[a], js[b]
-        keep = par[j, l]
-        if keep.any():
-            cycles.append(np.column_stack([np.full(keep.sum(), iu[p]), j[keep],
-                                           np.full(keep.sum(), ku[p]), l[keep]]))
-    if not cycles:
+    p, j, l = _pairs_within_rows(common)  # every two common neighbours j < l of pair p
+    keep = par[j, l]
+    if not keep.any():
         return Quads.empty()
-    side_lines = np.vstack(cycles)  # side s on line side_lines[:, s]
+    side_lines = np.column_stack([iu[p[keep]], j[keep], ku[p[keep]], l[keep]])  # side s on line [:, s]
     # Each side runs on its line between the previous and the next side's intersections.
     prev = np.roll(side_lines, 1, axis=1)
     nxt = np.roll(side_lines, -1, axis=1)
@@ -164,14 +157,17 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     return quads
 
 
-@functools.lru_cache(maxsize=256)
-def _pairs(n: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    """``np.triu_indices(n, 1)``, cached: the corner-graph search asks for it thousands of
-    times per image with a handful of sizes."""
-    a, b = np.triu_indices(n, 1)
-    a.setflags(write=False)
-    b.setflags(write=False)
-    return a, b
+def _pairs_within_rows(m: NDArray[np.bool_]) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
+    """All ``(row, j, l)`` with ``j < l`` and ``m[row, j]``, ``m[row, l]`` both set (vectorised
+    over the rows: the k set entries of a row give k(k-1)/2 triples)."""
+    row, col = np.nonzero(m)  # sorted by row, then column
+    count = np.bincount(row, minlength=m.shape[0])
+    start = np.cumsum(count) - count
+    after = count[row] - (np.arange(len(row)) - start[row]) - 1  # entries later in its row
+    first = np.repeat(np.arange(len(row)), after)
+    # the k-th partner of entry e is entry e + 1 + k
+    second = first + 1 + np.arange(len(first)) - np.repeat(np.cumsum(after) - after, after)
+    return row[first], col[first], col[second]
 
 
 def _arm(profile: SupportProfile, line: NDArray[np.intp], t: NDArray[np.float64],
@@ -271,31 +267,32 @@ class CoverSelection:
 
 def _distinct(quads: Quads, tol_px: float) -> tuple[Quads, NDArray[np.int64]]:
     """Greedy by N_f: a candidate whose four corners all lie within ``tol_px`` of a stronger
-    kept one's joins that one's group (the same cover from neighbouring lines). Kept quads are
-    hashed by their centroid, so each candidate is compared with a few only. Returns the
-    kept quads and, per kept quad, the highest T_HG at which any member of its group exists."""
+    kept one's joins that one's group (the same cover from neighbouring lines). The close
+    pairs come from a k-d tree on the eight corner coordinates (Chebyshev metric). Returns
+    the kept quads and, per kept quad, the highest T_HG at which any member of its group
+    exists."""
     if len(quads) == 0:
         return quads, np.zeros(0, np.int64)
     order = np.argsort(-quads.n_f, kind="stable")
-    flat = _canonical(quads.corners[order]).reshape(len(order), 8).tolist()
-    votes_in = quads.min_votes[order].tolist()
-    grid: dict[tuple[int, int], list[int]] = {}
-    kept: list[int] = []
-    votes: list[int] = []
-    for a, c in enumerate(flat):
-        # Hash on the centroid: duplicates have centroids within tol_px too, while the many
-        # quads that merely share a corner spread over many cells.
-        cx = int((c[0] + c[2] + c[4] + c[6]) / 4 // tol_px)
-        cy = int((c[1] + c[3] + c[5] + c[7]) / 4 // tol_px)
-        home = min((g for dx in (-1, 0, 1) for dy in (-1, 0, 1) for g in grid.get((cx + dx, cy + dy), ())
-                    if max(abs(u - v) for u, v in zip(flat[kept[g]], c)) <= tol_px), default=None)
-        if home is None:
-            grid.setdefault((cx, cy), []).append(len(kept))
-            kept.append(a)
-            votes.append(votes_in[a])
-        else:  # joins the earliest (strongest) group within reach
-            votes[home] = max(votes[home], votes_in[a])
-    return quads.take(order[np.asarray(kept, dtype=np.intp)]), np.asarray(votes, dtype=np.int64)
+    flat = _canonical(quads.corners[order]).reshape(len(order), 8)
+    pairs = cKDTree(flat).query_pairs(tol_px, p=np.inf, output_type="ndarray")
+    # Every candidate's close candidates ranked before it (stronger), as a CSR-like table.
+    later, earlier = pairs.max(axis=1), pairs.min(axis=1)
+    by_later = np.lexsort((earlier, later))
+    later, earlier = later[by_later], earlier[by_later]
+    start = np.searchsorted(later, np.arange(len(order) + 1))
+    group = list(range(len(order)))  # the kept candidate each one joins (itself if kept)
+    earlier_list, start_list = earlier.tolist(), start.tolist()
+    for a in np.nonzero(np.diff(start))[0].tolist():  # only those with a stronger duplicate
+        for g in earlier_list[start_list[a]:start_list[a + 1]]:  # the strongest first
+            if group[g] == g:  # a kept candidate within reach
+                group[a] = g
+                break
+    group = np.asarray(group, dtype=np.intp)
+    kept = np.nonzero(group == np.arange(len(order)))[0]
+    votes = np.zeros(len(order), np.int64)
+    np.maximum.at(votes, group, quads.min_votes[order])
+    return quads.take(order[kept]), votes[kept]
 
 
 def _canonical(c: NDArray[np.float64]) -> NDArray[np.float64]:
