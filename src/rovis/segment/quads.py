@@ -267,28 +267,24 @@ class CoverSelection:
 
 def _distinct(quads: Quads, tol_px: float) -> tuple[Quads, NDArray[np.int64]]:
     """Greedy by N_f: a candidate whose four corners all lie within ``tol_px`` of a stronger
-    kept one's joins that one's group (the same cover from neighbouring lines). The close
-    pairs come from a k-d tree on the eight corner coordinates (Chebyshev metric). Returns
-    the kept quads and, per kept quad, the highest T_HG at which any member of its group
-    exists."""
+    kept one's joins that one's group (the same cover from neighbouring lines). Each kept
+    candidate claims its reach at once from a k-d tree on the eight corner coordinates
+    (Chebyshev metric), so the work grows with the kept candidates, not with the pairs of
+    duplicates. Returns the kept quads and, per kept quad, the highest T_HG at which any
+    member of its group exists."""
     if len(quads) == 0:
         return quads, np.zeros(0, np.int64)
     order = np.argsort(-quads.n_f, kind="stable")
     flat = _canonical(quads.corners[order]).reshape(len(order), 8)
-    pairs = cKDTree(flat).query_pairs(tol_px, p=np.inf, output_type="ndarray")
-    # Every candidate's close candidates ranked before it (stronger), as a CSR-like table.
-    later, earlier = pairs.max(axis=1), pairs.min(axis=1)
-    by_later = np.lexsort((earlier, later))
-    later, earlier = later[by_later], earlier[by_later]
-    start = np.searchsorted(later, np.arange(len(order) + 1))
-    group = list(range(len(order)))  # the kept candidate each one joins (itself if kept)
-    earlier_list, start_list = earlier.tolist(), start.tolist()
-    for a in np.nonzero(np.diff(start))[0].tolist():  # only those with a stronger duplicate
-        for g in earlier_list[start_list[a]:start_list[a + 1]]:  # the strongest first
-            if group[g] == g:  # a kept candidate within reach
-                group[a] = g
-                break
-    group = np.asarray(group, dtype=np.intp)
+    tree = cKDTree(flat)
+    group = np.full(len(order), -1, np.intp)  # the kept candidate each one joins
+    for a in range(len(order)):
+        if group[a] >= 0:
+            continue
+        group[a] = a  # no stronger kept candidate within reach: keep it, and let it claim
+        near = np.asarray(tree.query_ball_point(flat[a], tol_px, p=np.inf), dtype=np.intp)
+        near = near[group[near] < 0]  # ...the unclaimed within its reach (all weaker)
+        group[near] = a
     kept = np.nonzero(group == np.arange(len(order)))[0]
     votes = np.zeros(len(order), np.int64)
     np.maximum.at(votes, group, quads.min_votes[order])
