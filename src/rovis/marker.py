@@ -408,19 +408,21 @@ def _clip_polygon(poly: NDArray[np.float64], size: tuple[int, int]) -> NDArray[n
     """Sutherland–Hodgman clip of a polygon (N, 2) to the image ``[0, w-1] × [0, h-1]``."""
     w, h = size
     edges = ((0, 0.0, 1.0), (0, w - 1.0, -1.0), (1, 0.0, 1.0), (1, h - 1.0, -1.0))
-    out = poly
+    out = poly.tolist()  # plain floats: this loop runs over every sampled point
     for axis, bound, sign in edges:
-        if len(out) == 0:
+        if not out:
             break
-        inside = sign * (out[:, axis] - bound) >= 0
         res = []
-        for i in range(len(out)):
-            p, q = out[i - 1], out[i]
-            pin, qin = inside[i - 1], inside[i]
+        p = out[-1]
+        pin = sign * (p[axis] - bound) >= 0
+        for q in out:
+            qin = sign * (q[axis] - bound) >= 0
             if qin != pin:
                 t = (bound - p[axis]) / (q[axis] - p[axis])
-                res.append(p + t * (q - p))
+                res.append([p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])])
             if qin:
                 res.append(q)
-        out = np.asarray(res, dtype=np.float64).reshape(-1, 2)
+            p, pin = q, qin
+        out = res
+    out = np.asarray(out, dtype=np.float64).reshape(-1, 2)
     return out

@@ -92,6 +92,9 @@ class Detector:
         self._maps = {cam: cv2.initUndistortRectifyMap(K, D, None, K, (w, h), cv2.CV_16SC2)
                       for cam, (K, D) in (("left", (rig.K1, rig.D1)), ("right", (rig.K2, rig.D2)))}
         self._controllers = {cam: CascadeController(self.cfg.segment) for cam in ("left", "right")}
+        # The last ROI per camera: a registered rig's (or a still marker's) is the same
+        # every frame, so it is drawn once.
+        self._masks: dict[str, tuple[bytes, NDArray[np.uint8]]] = {}
 
     def reset(self) -> None:
         """Start a new sequence: forget the controllers' previous optimum."""
@@ -222,8 +225,12 @@ class Detector:
                   T_world_marker: NDArray[np.float64] | None) -> NDArray[np.uint8] | None:
         if T_world_marker is None:
             return None
-        return roi_mask(rig, cam, T_world_marker, x=self.cfg.workspace_x, y=self.cfg.workspace_y,
-                        height=self.cfg.roi_height, margin_px=self.cfg.roi_margin_px)
+        key = np.asarray(T_world_marker, dtype=np.float64).tobytes() + rig.T_world_left.tobytes()
+        if cam not in self._masks or self._masks[cam][0] != key:
+            self._masks[cam] = (key, roi_mask(rig, cam, T_world_marker, x=self.cfg.workspace_x,
+                                              y=self.cfg.workspace_y, height=self.cfg.roi_height,
+                                              margin_px=self.cfg.roi_margin_px))
+        return self._masks[cam][1]
 
     def _reconstruct(self, rig: StereoRig, segs: dict[str, Segmentation], mt,  # type: ignore[no-untyped-def]
                      desk_plane: NDArray[np.float64] | None, index: int) -> BookDetection | None:
