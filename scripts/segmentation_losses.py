@@ -15,7 +15,9 @@ stage of the chain that lost it, at the T_H the controller chose:
 It also prints the oracle: the books found when T_H is picked per image by the truth
 (from a 9-step log grid), which bounds what a better controller alone could gain, and each
 book's weakest side contrast (median gradient across the side over the ROI's median
-gradient), which bounds what any edge-based chain could see.
+gradient), which bounds what any edge-based chain could see; and the share of books whose
+four true sides pass the quad stage's edge-support test at one T_H of the grid, which bounds
+what this chain, with its support rule, can find.
 
     python scripts/segmentation_losses.py --n 12 --seed 100
 """
@@ -72,6 +74,25 @@ def side_contrast(grad, truth: np.ndarray, noise: float) -> float:  # type: igno
     return worst
 
 
+def side_support(grad, edges: np.ndarray, truth: np.ndarray, trim: float = 3.0) -> float:  # type: ignore[no-untyped-def]
+    """The weakest true side's edge coverage: the quad stage's support test (edge pixel
+    within 1 px, gradient across the side) applied to the truth."""
+    rho, theta, ta, tb = [], [], [], []
+    for k in range(4):
+        a, b = truth[k], truth[(k + 1) % 4]
+        t = (np.arctan2(b[1] - a[1], b[0] - a[0]) + np.pi / 2) % np.pi
+        d = np.array([-np.sin(t), np.cos(t)])
+        rho.append(a[0] * np.cos(t) + a[1] * np.sin(t))
+        theta.append(t)
+        ta.append(a @ d)
+        tb.append(b @ d)
+    lines = Lines(np.array(rho), np.array(theta), np.ones(4, np.int64))
+    lo = np.minimum(ta, tb) + trim
+    hi = np.maximum(ta, tb) - trim
+    hits = support_profile(lines, edges, grad).hits(np.arange(4), lo, hi)
+    return float(np.min(hits / np.maximum(hi - lo, 1.0)))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=12)
@@ -81,7 +102,7 @@ def main() -> None:
     cfg = SegmentConfig()
     grid = np.exp(np.linspace(np.log(cfg.T_H_range[0]), np.log(cfg.T_H_range[1]), 9))
     fate: Counter[str] = Counter()
-    oracle = contrast_ok = total = 0
+    oracle = contrast_ok = edge_bound = total = 0
     for i in range(args.n):
         sc = sample_scene(args.seed + i)
         r = render(sc, args.seed + i)
@@ -105,8 +126,10 @@ def main() -> None:
         strong = quads.min_votes >= seg.T_HG
         per_th = [finish(grad, evaluate(grad, t, cfg), 1).corners for t in grid]
         oracle += max(sum(near(c, tc, 3.0) for tc in books) for c in per_th)
+        grid_edges = [canny(grad, t) for t in grid]
         for tc in books:
             total += 1
+            edge_bound += max(side_support(grad, e, tc) for e in grid_edges) >= cfg.quads.min_support
             contrast_ok += side_contrast(grad, tc, noise) >= 3.0
             ranks = [side_rank(lines, tc[k], tc[(k + 1) % 4]) for k in range(4)]
             if near(seg.corners, tc, 3.0):
@@ -130,6 +153,8 @@ def main() -> None:
         print(f"| {stage} | {k} | {k / total:.0%} |")
     print(f"\noracle T_H per image: {oracle / total:.0%} found; controller: {fate['found'] / total:.0%}")
     print(f"books whose weakest side has contrast >= 3x the ROI's median gradient: {contrast_ok / total:.0%}")
+    print(f"books whose four true sides pass the quad stage's edge-support test (>= "
+          f"{cfg.quads.min_support:.0%} covered) at some T_H of the grid: {edge_bound / total:.0%}")
 
 
 if __name__ == "__main__":

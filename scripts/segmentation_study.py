@@ -82,6 +82,10 @@ def main() -> None:
             err = np.median(st["err"]) if st["err"] else float("nan")
             print(f"| {name} | {lo}-{hi} | {len(st['found'])} | {rec:.2f} | {err:.2f} | "
                   f"{np.mean(st['fp']):.1f} | {np.median(st['ms']):.0f} |")
+    print()
+    for name in methods:
+        found = [ok for band in range(len(BANDS)) for ok in stats[(name, band)]["found"]]
+        print(f"{name}: {sum(found)} of {len(found)} books found over all bands")
 
 
 if __name__ == "__main__":
