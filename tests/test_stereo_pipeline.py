@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from rovis.pipeline import DetectConfig, Detector, detect
-from rovis.stereo import match_quads
+from rovis.segment import canny
+from rovis.stereo import StereoConfig, find_in_other_view, match_quads
 from rovis.synth import render, sample_scene
 
 
@@ -51,6 +52,58 @@ def test_the_desk_plane_rejects_a_quad_at_the_wrong_depth(scene):
     assert match_quads(left, wrong, rig.Q_L, rig.Q_R, desk_plane=r.truth["desk_plane"]) == []
     assert len(match_quads(left, _ideal(rig, P, rig.Q_R)[None], rig.Q_L, rig.Q_R,
                            desk_plane=r.truth["desk_plane"])) == 1
+
+
+def _ideal_grad(rig, raw, camera):
+    import cv2
+
+    from rovis.segment import gradients
+
+    K, D = rig.intrinsics(camera)
+    maps = cv2.initUndistortRectifyMap(K, D, None, K, rig.image_size, cv2.CV_16SC2)
+    ideal = cv2.remap(raw, *maps, cv2.INTER_LINEAR)
+    return ideal, gradients(ideal)
+
+
+def _quad_mask(quad, shape, grow_px=3):
+    import cv2
+
+    mask = np.zeros(shape, np.uint8)
+    cv2.fillConvexPoly(mask, np.rint(quad).astype(np.int32), 255)
+    return cv2.dilate(mask, np.ones((2 * grow_px + 1,) * 2, np.uint8))
+
+
+def test_a_cover_found_in_one_image_is_found_in_the_other(scene):
+    sc, r = scene
+    rig = sc.rig
+    gray_l, _ = _ideal_grad(rig, r.left, "left")
+    gray_r, grad_r = _ideal_grad(rig, r.right, "right")
+    found = 0
+    for b in r.truth["books"]:
+        if min(b["visible_left"], b["visible_right"]) < 0.99:
+            continue
+        P = np.array(b["corners"])
+        got = find_in_other_view(_ideal(rig, P, rig.Q_L), rig.Q_L, rig.Q_R, r.truth["desk_plane"],
+                                 grad_r, 10.0, gray_from=gray_l, gray_to=gray_r)
+        if got is not None:
+            found += 1
+            # corners in the same physical order, sub-pixel, wherever the sweep stopped
+            assert np.abs(got[0] - _ideal(rig, P, rig.Q_R)).max() < 1.0
+    assert found >= 2
+
+
+def test_no_cover_is_invented_where_the_other_image_shows_desk(scene):
+    sc, r = scene
+    rig = sc.rig
+    gray_l, _ = _ideal_grad(rig, r.left, "left")
+    gray_r, grad_r = _ideal_grad(rig, r.right, "right")
+    b = r.truth["books"][0]
+    # the first book's cover, moved 40 cm back along the desk: bare desk in the right image
+    P = np.array(b["corners"]) + [0.0, 0.40, 0.0]
+    assert canny(grad_r, 60.0)[_quad_mask(_ideal(rig, P, rig.Q_R), grad_r.shape) > 0].sum() == 0
+    assert find_in_other_view(_ideal(rig, P, rig.Q_L), rig.Q_L, rig.Q_R, r.truth["desk_plane"],
+                              grad_r, 10.0, gray_from=gray_l, gray_to=gray_r) is None
+    assert StereoConfig().transfer
 
 
 def test_detect_returns_the_design_json_for_a_scene(scene):

@@ -25,8 +25,10 @@ from rovis.calib import StereoRig
 from rovis.imageio import to_gray_u8
 from rovis.results import BookDetection, FrameResult, SegmentationInfo
 from rovis.segment import CascadeController, SegmentConfig, Segmentation, gradients
+from rovis.segment.edges import CANNY_LOW_RATIO, Gradients
 from rovis.segment.methods import METHODS, segment
-from rovis.stereo import StereoConfig, match_quads
+from rovis.segment.quads import quad_overlap
+from rovis.stereo import Match, StereoConfig, find_in_other_view, match_quads
 
 
 @dataclass(frozen=True)
@@ -71,6 +73,21 @@ class DetectConfig:
             raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {self.method!r}")
         if self.triangulation not in ("dlt", "optimal"):
             raise ValueError(f"triangulation: expected 'dlt' or 'optimal', got {self.triangulation!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class Pair:
+    """One cover's corners in both ideal images, the same physical corner at each index.
+
+    ``transferred`` names the image the cover was segmented in when the other image's
+    corners come from :func:`rovis.stereo.find_in_other_view` (None: segmented in both).
+    """
+
+    left: NDArray[np.float64]  # (4, 2)
+    right: NDArray[np.float64]  # (4, 2)
+    quality: float  # edge support of the segmented quad(s), 0-1
+    error_px: float  # stereo match error (0 for a transferred cover)
+    transferred: str | None = None
 
 
 class Detector:
@@ -151,9 +168,10 @@ class Detector:
 
         # 3. segmentation per image
         segs: dict[str, Segmentation] = {}
+        grads: dict[str, Gradients] = {}
         for cam in ("left", "right"):
             mask = self._roi_mask(rig, cam, T_world_marker)
-            grad = gradients(ideal[cam], mask)
+            grads[cam] = grad = gradients(ideal[cam], mask)
             lap("gradients")
             segs[cam] = segment(ideal[cam], grad, self.cfg.method,
                                 controller=self._controllers[cam], cfg=self.cfg.segment)
@@ -167,15 +185,20 @@ class Detector:
         matches = match_quads(segs["left"].corners, segs["right"].corners, rig.Q_L, rig.Q_R,
                               desk_plane=desk_plane, gray_left=ideal["left"],
                               gray_right=ideal["right"], cfg=self.cfg.stereo)
+        pairs = [Pair(segs["left"].corners[mt.left], mt.corners_right,
+                      float(min(segs["left"].support[mt.left], segs["right"].support[mt.right])),
+                      mt.error_px) for mt in matches]
+        if self.cfg.stereo.transfer and desk_plane is not None:
+            pairs += self._transfer(rig, segs, grads, ideal, matches, desk_plane)
         lap("stereo")
 
         # 5. triangulation and pose
         objects = []
-        for mt in matches:
-            book = self._reconstruct(rig, segs, mt, desk_plane, len(objects))
+        for pair in pairs:
+            book = self._reconstruct(rig, pair, desk_plane, len(objects))
             if book is not None:
                 objects.append(book)
-        dropped = len(matches) - len(objects)
+        dropped = len(pairs) - len(objects)
         if dropped:
             warnings.append(f"{dropped} matched quad(s) dropped: not flat on the desk "
                             "(tilt or height out of range)")
@@ -232,10 +255,42 @@ class Detector:
                                               margin_px=self.cfg.roi_margin_px))
         return self._masks[cam][1]
 
-    def _reconstruct(self, rig: StereoRig, segs: dict[str, Segmentation], mt,  # type: ignore[no-untyped-def]
-                     desk_plane: NDArray[np.float64] | None, index: int) -> BookDetection | None:
-        c_left = segs["left"].corners[mt.left]
-        c_right = mt.corners_right
+    def _transfer(self, rig: StereoRig, segs: dict[str, Segmentation], grads: dict[str, Gradients],
+                  ideal: dict[str, NDArray[np.uint8]], matches: list[Match],
+                  desk_plane: NDArray[np.float64]) -> list[Pair]:
+        """Covers found in one image only, looked for in the other (find_in_other_view)."""
+        Q = {"left": rig.Q_L, "right": rig.Q_R}
+        used = {"left": {mt.left for mt in matches}, "right": {mt.right for mt in matches}}
+        taken = {"left": [segs["left"].corners[k] for k in used["left"]],
+                 "right": [segs["right"].corners[k] for k in used["right"]]}
+        # Best-supported first: where the two images' segmentations disagree (a union of two
+        # touching covers in one, one of them in the other), the cleaner quad wins.
+        todo = sorted(((float(segs[src].support[k]), src, dst, k)
+                       for src, dst in (("left", "right"), ("right", "left"))
+                       for k in range(len(segs[src])) if k not in used[src]), reverse=True)
+        out = []
+        for quality, src, dst, k in todo:
+            source = segs[src].corners[k]
+            if any(quad_overlap(source, q) > 0.3 for q in taken[src]):
+                continue  # already a book, from the other image's quad
+            T_H = segs[dst].T_H if segs[dst].T_H > 0 else segs[src].T_H
+            found = find_in_other_view(source, Q[src], Q[dst], desk_plane, grads[dst],
+                                       CANNY_LOW_RATIO * T_H, gray_from=ideal[src],
+                                       gray_to=ideal[dst], cfg=self.cfg.stereo)
+            if found is None or any(quad_overlap(found[0], q) > 0.3 for q in taken[dst]):
+                continue
+            taken[src].append(source)
+            taken[dst].append(found[0])
+            c = {src: source, dst: found[0]}
+            # keep eq. 1's order in the left image, the right's corners corresponding
+            shift = int(np.argmin(c["left"].sum(axis=1)))
+            out.append(Pair(np.roll(c["left"], -shift, axis=0), np.roll(c["right"], -shift, axis=0),
+                            quality, 0.0, transferred=src))
+        return out
+
+    def _reconstruct(self, rig: StereoRig, pair: Pair, desk_plane: NDArray[np.float64] | None,
+                     index: int) -> BookDetection | None:
+        c_left, c_right = pair.left, pair.right
         P = geometry.triangulate(rig.Q_L, rig.Q_R, c_left, c_right, method=self.cfg.triangulation)
         if not np.all(np.isfinite(P)):
             return None
@@ -245,7 +300,10 @@ class Detector:
             return None
         if desk_plane is not None:
             tilt = np.degrees(np.arccos(np.clip(pose.R[:, 2] @ desk_plane[:3], -1, 1)))
-            if tilt > self.cfg.max_tilt_deg or not (0.0 < pose.size[2] <= self.cfg.stereo.max_height):
+            # a cover found in one image only must stand as high as the search assumed: a
+            # flat pattern on the desk (a sheet, a seam rectangle) is no book
+            low = self.cfg.stereo.min_height if pair.transferred else 0.0
+            if tilt > self.cfg.max_tilt_deg or not (low < pose.size[2] <= self.cfg.stereo.max_height):
                 return None
         reproj = np.concatenate([
             np.linalg.norm(geometry.project(rig.Q_L, P) - c_left, axis=1),
@@ -255,8 +313,7 @@ class Detector:
             corners_left_px=rig.distort_points(c_left, "left"),
             corners_right_px=rig.distort_points(c_right, "right"),
             reprojection_error_px=float(reproj.mean()),
-            quality=float(min(segs["left"].support[mt.left], segs["right"].support[mt.right])),
-            stereo_error_px=mt.error_px)
+            quality=pair.quality, stereo_error_px=pair.error_px)
 
 
 def roi_mask(rig: StereoRig, camera: Literal["left", "right"], T_world_marker: NDArray[np.float64], *,

@@ -8,6 +8,12 @@ Among the four cyclic corner orders the best is kept, so the same physical corne
 both images; the covers' appearance (normalised cross-correlation of the two rectified
 cover patches) breaks ties between similar shapes. The assignment is one-to-one
 (Hungarian).
+
+Beyond the paper: a cover the segmentation found in one image only is looked for in the
+other (:func:`find_in_other_view`). Books lie flat, so with the desk plane known the cover's
+one unknown is its height; its predicted sides are checked against the other image's
+gradient and refit there. The segmentation often finds a cover in one image and misses it
+in the other; this recovers those books instead of needing both images' chains to succeed.
 """
 
 from __future__ import annotations
@@ -20,6 +26,8 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import linear_sum_assignment
 
 from rovis import geometry
+from rovis.segment.boundary import refine_quad
+from rovis.segment.edges import Gradients
 
 _PATCH = (48, 36)  # rectified cover patch, px
 
@@ -34,6 +42,12 @@ class StereoConfig:
     max_depth: float = 5.0
     min_ncc: float = 0.2  # covers must look alike
     appearance_weight_px: float = 2.0  # cost of (1 - NCC), in pixels
+    # Finding a cover seen in one image only in the other (find_in_other_view):
+    transfer: bool = True
+    min_height: float = 0.004  # cover height range searched above the desk, metres
+    max_cover_height: float = 0.10  # (the ROI's height)
+    height_step: float = 0.002  # ~0.1 px of disparity at 1-2 m
+    max_refine_px: float = 2.0  # refined corners this close to the predicted ones
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,14 +128,103 @@ def match_quads(quads_left: ArrayLike, quads_right: ArrayLike, Q_L: ArrayLike, Q
     return sorted(out, key=lambda mt: mt.left)
 
 
+def find_in_other_view(corners: ArrayLike, Q_from: ArrayLike, Q_to: ArrayLike,
+                       desk_plane: ArrayLike, grad_to: Gradients, min_strength: float, *,
+                       gray_from: NDArray[np.uint8] | None = None,
+                       gray_to: NDArray[np.uint8] | None = None,
+                       cfg: StereoConfig = StereoConfig()) -> tuple[NDArray[np.float64], float] | None:
+    """The cover found in one image, looked for in the other by its height above the desk.
+
+    A book's cover is parallel to the desk: its corners' rays meet the plane at height h
+    in four points, whose projections are the cover in the other image. h is swept from
+    ``cfg.min_height`` to ``cfg.max_cover_height``; the h whose predicted sides show the
+    strongest edges (median gradient across each, best of ±1 px, weighted by how much the
+    side crosses the epipolar lines) wins if every side reaches ``min_strength``; its sides
+    are refit to the gradient (:func:`rovis.segment.boundary.refine_quad`). Used for
+    covers the segmentation found in one image only: their edges are often there in the
+    other image too, just below what its Hough stage kept.
+
+    Parameters
+    ----------
+    corners : array_like, shape (4, 2)
+        Ideal pixel corners in the image where the cover was found.
+    Q_from, Q_to : array_like, shape (3, 4)
+        World → ideal pixel projections of that image and of the other.
+    desk_plane : array_like, shape (4,)
+        ``[nx, ny, nz, d]`` in the world frame, normal up.
+    grad_to : Gradients
+        The other image's gradients.
+    min_strength : float
+        Every predicted side's median gradient across it must reach this (Sobel units; the
+        other image's Canny low threshold is a natural choice).
+    gray_from, gray_to : ndarray, optional
+        Both undistorted images: the two covers must then also look alike (``cfg.min_ncc``).
+
+    Returns
+    -------
+    (corners_to, height) : ndarray, shape (4, 2), and float (metres), or None
+        Corners in the other image, in the same physical order as ``corners``.
+    """
+    c = np.asarray(corners, dtype=np.float64).reshape(4, 2)
+    Q_from, Q_to = np.asarray(Q_from, dtype=np.float64), np.asarray(Q_to, dtype=np.float64)
+    plane = np.asarray(desk_plane, dtype=np.float64)
+    C, rays = _rays(Q_from, c)
+    heights = np.arange(cfg.min_height, cfg.max_cover_height + 1e-9, cfg.height_step)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = -(plane[:3] @ C + plane[3] - heights[:, None]) / (rays @ plane[:3])[None, :]  # (H, 4)
+    if not np.all(np.isfinite(s) & (s > 0)):
+        return None
+    pred = geometry.project(Q_to, C + s[..., None] * rays[None]).reshape(len(heights), 4, 2)
+    strength = _side_strength(grad_to, pred)  # (H, 4)
+    # A side along the epipolar lines slides onto itself at every height: only sides across
+    # them place the cover. Weight each side by the sine of its angle to the corners' motion.
+    side = np.roll(pred[0], -1, axis=0) - pred[0]
+    motion = pred[-1] - pred[0]
+    motion = 0.5 * (motion + np.roll(motion, -1, axis=0))  # at each side's middle
+    w = np.abs(side[:, 0] * motion[:, 1] - side[:, 1] * motion[:, 0]) / np.maximum(
+        np.linalg.norm(side, axis=1) * np.linalg.norm(motion, axis=1), 1e-9)
+    score = strength @ w / max(w.sum(), 1e-9)
+    best = int(np.argmax(score))
+    if strength[best].min() < min_strength:
+        return None
+    refined = refine_quad(grad_to, pred[best])
+    if np.linalg.norm(refined - pred[best], axis=1).max() > cfg.max_refine_px:
+        return None
+    if gray_from is not None and gray_to is not None and \
+            _cover_ncc(gray_from, c, gray_to, refined) < cfg.min_ncc:
+        return None
+    return refined, float(heights[best])
+
+
+def _side_strength(grad: Gradients, quads: NDArray[np.float64], samples: int = 24) -> NDArray[np.float64]:
+    """Median gradient across each side of quads (..., 4, 2), best of offsets −1, 0, +1 px."""
+    a, b = quads, np.roll(quads, -1, axis=-2)
+    length = np.linalg.norm(b - a, axis=-1, keepdims=True)
+    n = (b - a)[..., ::-1] * np.array([1.0, -1.0]) / np.maximum(length, 1e-9)  # unit normal
+    u = np.linspace(0.1, 0.9, samples)
+    pts = a[..., None, :] + u[:, None] * (b - a)[..., None, :]  # (..., 4, S, 2)
+    best = None
+    for off in (-1.0, 0.0, 1.0):
+        q = pts + off * n[..., None, :]
+        gx, gy = grad.sample(q[..., 0], q[..., 1])
+        g = np.abs(gx * n[..., None, 0] + gy * n[..., None, 1])
+        best = g if best is None else np.maximum(best, g)
+    return np.median(best, axis=-1)
+
+
+def _rays(Q: NDArray[np.float64], p: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The camera centre (3,) and unit world directions (N, 3) of pixels ``p`` (N, 2)."""
+    M = Q[:, :3]
+    C = -np.linalg.solve(M, Q[:, 3])
+    rays = np.linalg.solve(M, np.column_stack([p, np.ones(len(p))]).T).T
+    return C, rays / np.linalg.norm(rays, axis=1, keepdims=True)
+
+
 def _segments(p_L: NDArray[np.float64], Q_L: NDArray[np.float64], Q_R: NDArray[np.float64],
               desk_plane: ArrayLike | None,
               cfg: StereoConfig) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """For each left pixel, the right-image end points of where its 3D point may be."""
-    M = Q_L[:, :3]
-    C = -np.linalg.solve(M, Q_L[:, 3])  # left camera centre, world
-    rays = np.linalg.solve(M, np.column_stack([p_L, np.ones(len(p_L))]).T).T  # world directions
-    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    C, rays = _rays(Q_L, p_L)  # left camera centre and world directions
     if desk_plane is not None:
         plane = np.asarray(desk_plane, dtype=np.float64)
         n, d = plane[:3], plane[3]

@@ -250,7 +250,7 @@ class CoverSelection:
             return False
         key = (min(a, b), max(a, b))
         if key not in self._conflict:
-            self._conflict[key] = _overlap(self.quads.corners[a], self.quads.corners[b]) > self.cfg.max_overlap
+            self._conflict[key] = quad_overlap(self.quads.corners[a], self.quads.corners[b]) > self.cfg.max_overlap
         return self._conflict[key]
 
     def at(self, T_HG: int) -> Quads:
@@ -312,8 +312,8 @@ def _inside_convex(inner: NDArray[np.float64], outer: NDArray[np.float64],
     return np.all(cross >= -tol * np.linalg.norm(edge, axis=2)[:, :, None], axis=(1, 2))
 
 
-def _overlap(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
-    """Intersection area over the smaller quad's area."""
+def quad_overlap(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+    """Intersection area of two convex quads (4, 2) over the smaller one's area."""
     inter, _ = cv2.intersectConvexConvex(a.astype(np.float32), b.astype(np.float32))
     smaller = min(cv2.contourArea(a.astype(np.float32)), cv2.contourArea(b.astype(np.float32)))
     return float(inter) / smaller if smaller > 0 else 1.0
