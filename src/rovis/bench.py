@@ -113,7 +113,8 @@ class PipelineBench:
         w, h = self.size
         methods = list(self.timings)
         lines = [f"pipeline: {self.n} synthetic scenes ({self.protocol}), {w}x{h} stereo pairs, "
-                 f"one core (cv2.setNumThreads(1)), detector reset before each frame; "
+                 f"one core (cv2.setNumThreads(1)), detector reset before each frame "
+                 f"(closed, warm: before each pair of frames of one scene, the second timed); "
                  f"ms per frame, median (IQR)"]
         lines.append(f"{'stage':<14}" + "".join(f"{m:>26}" for m in methods))
 
@@ -152,16 +153,17 @@ def scaled_rig(rig: StereoRig, size: tuple[int, int]) -> StereoRig:
 
 
 def render_frames(n: int, *, size: tuple[int, int] = (1024, 768), protocol: str = "mixed",
-                  seed: int = 0) -> tuple[StereoRig, list[tuple[np.ndarray, np.ndarray]]]:
+                  seed: int = 0, take: int = 0) -> tuple[StereoRig, list[tuple[np.ndarray, np.ndarray]]]:
     """``n`` synthetic stereo pairs (:mod:`rovis.synth`) and their rig, resized to ``size``
-    when it is not the renderer's own."""
+    when it is not the renderer's own. ``take`` > 0 renders the same scenes again with other
+    sensor noise: the next frame of a camera that has not moved."""
     from rovis.synth.dataset import dataset_rig, dataset_scenes
     from rovis.synth.render import render
 
     rig = dataset_rig(seed)
     frames = []
     for i, scene in dataset_scenes(protocol, n, seed):
-        r = render(scene, np.random.default_rng([seed, 9, i]))
+        r = render(scene, np.random.default_rng([seed, 9, i] + ([take] if take else [])))
         frames.append((r.left, r.right))
     if tuple(size) != tuple(rig.image_size):  # type: ignore[arg-type]
         interp = cv2.INTER_AREA if size[0] < rig.image_size[0] else cv2.INTER_LINEAR  # type: ignore[index]
@@ -192,6 +194,31 @@ def time_pipeline(rig: StereoRig, frames: list[tuple[np.ndarray, np.ndarray]],
             stages[s].append(result.timing_ms.get(s, 0.0))
     return PipelineTiming(method, {s: np.array(v) for s, v in stages.items()}, np.array(total),
                           books)
+
+
+def time_sequence(rig: StereoRig, frames: list[tuple[np.ndarray, np.ndarray]],
+                  next_frames: list[tuple[np.ndarray, np.ndarray]], method: str) -> PipelineTiming:
+    """Like :func:`time_pipeline`, but each timed frame follows one of the same scene (a
+    still camera): the closed loop's controller starts from that frame's optimum (warm
+    start), as in a ``rovis detect`` sequence. Only the second frame of each pair is timed."""
+    from rovis.pipeline import DetectConfig, Detector
+
+    cv2.setNumThreads(1)
+    detector = Detector(rig, DetectConfig(method=method))
+    detector.detect(*frames[0])  # warm-up
+    stages: dict[str, list[float]] = {s: [] for s in PIPELINE_STAGES}
+    total, books = [], 0
+    for first, (left, right) in zip(frames, next_frames):
+        detector.reset()
+        detector.detect(*first)
+        t0 = time.perf_counter()
+        result = detector.detect(left, right)
+        total.append(1e3 * (time.perf_counter() - t0))
+        books += len(result.objects)
+        for s in PIPELINE_STAGES:
+            stages[s].append(result.timing_ms.get(s, 0.0))
+    return PipelineTiming(f"{method}, warm", {s: np.array(v) for s, v in stages.items()},
+                          np.array(total), books)
 
 
 _BENCH: dict[str, object] = {}
@@ -247,7 +274,9 @@ def bench_pipeline(n: int = 30, *, size: tuple[int, int] = (1024, 768), method: 
     """Time the whole pipeline per frame and per stage (``rovis bench``).
 
     ``n`` synthetic scenes are rendered once; ``method`` is timed on one core, and so are
-    closed and open loop (for their segmentation-time ratio); then ``method``'s rate over a
+    closed and open loop (for their segmentation-time ratio), each frame from scratch; then
+    the closed loop in a still-camera sequence (``closed, warm``: each scene's frame after
+    one of the same scene, the controller warm-started); then ``method``'s rate over a
     process pool of ``workers`` (default: all cores; none with one core).
     """
     from rovis.pipeline import METHODS
@@ -264,6 +293,10 @@ def bench_pipeline(n: int = 30, *, size: tuple[int, int] = (1024, 768), method: 
     for m in dict.fromkeys((method, "closed", "open")):
         say(f"rovis bench: timing {m} on one core")
         timings[m] = time_pipeline(rig, frames, m)
+    if "closed" in timings:  # the controller's warm start only pays in a sequence
+        say("rovis bench: timing closed on one core, each frame after one of the same scene")
+        _, next_frames = render_frames(n, size=size, protocol=protocol, seed=seed, take=1)
+        timings["closed, warm"] = time_sequence(rig, frames, next_frames, "closed")
     fps_all = None
     if workers > 1:
         say(f"rovis bench: timing {method} on {workers} cores")
