@@ -172,9 +172,13 @@ def _pairs_within_rows(m: NDArray[np.bool_]) -> tuple[NDArray[np.intp], NDArray[
 
 def _arm(profile: SupportProfile, line: NDArray[np.intp], t: NDArray[np.float64],
          cfg: QuadConfig) -> NDArray[np.bool_]:
-    """Whether ``line`` carries edge pixels along ``arm_px`` on either side of position ``t``,
-    starting at most ``arm_gap_px`` away (a book's outline reaches its corner a page-block
-    strip later)."""
+    """Whether ``line`` carries edge pixels along ``arm_px`` on either side of position ``t``
+    (or of where the line enters the image, for a corner outside it), starting at most
+    ``arm_gap_px`` away (a book's outline reaches its corner a page-block strip later)."""
+    if profile.t_in is not None:
+        # A corner outside the image (a book cut by the frame) shows its arms from where
+        # its lines enter the image; the sides' in-view share is checked later.
+        t = np.clip(t, profile.t_in[line, 0], profile.t_in[line, 1])
     found = np.zeros(len(line), bool)
     need = cfg.min_support * cfg.arm_px
     for gap in (cfg.corner_trim_px, 0.5 * cfg.arm_gap_px, cfg.arm_gap_px):
