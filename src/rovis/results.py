@@ -55,9 +55,12 @@ class BookDetection:
     reprojection_error_px : float
         Mean distance between the measured corners and the reprojected 3D corners.
     quality : float
-        Fraction of the cover's sides backed by edge pixels (worst of the two images).
+        Fraction of the cover's sides backed by edge pixels (worst of the two images; of the
+        one image whose segmentation found it, for a cover found in the other image by
+        :func:`rovis.stereo.find_in_other_view`).
     stereo_error_px : float
-        Mean distance of the right corners to where the left corners allow them.
+        Mean distance of the right corners to where the left corners allow them (0 for a
+        cover found in one image's segmentation only).
     """
 
     id: int
