@@ -99,3 +99,33 @@ def test_fundamental_matrix_agrees_with_rig(rig):
 def test_triangulate_rejects_unknown_method(rig):
     with pytest.raises(ValueError, match="method: expected 'dlt' or 'optimal'"):
         geometry.triangulate(rig.Q_L, rig.Q_R, np.zeros((1, 2)), np.zeros((1, 2)), method="svd")
+
+
+def _cover(yaw_deg: float, centre, length: float = 0.24, width: float = 0.16) -> np.ndarray:
+    """A book cover's corners (4, 3) parallel to the desk, cyclic order, metres."""
+    c, s = np.cos(np.radians(yaw_deg)), np.sin(np.radians(yaw_deg))
+    local = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * [length / 2, width / 2]
+    return np.column_stack([local @ np.array([[c, s], [-s, c]]), np.zeros(4)]) + centre
+
+
+def test_rectangle_fit_is_exact_without_noise_and_always_a_rectangle(rig):
+    P = _cover(30.0, [0.45, 0.35, 0.03])
+    pl, pr = _project(rig.Q_L, P), _project(rig.Q_R, P)
+    fit = geometry.fit_rectangle(rig.Q_L, rig.Q_R, pl, pr, P + 0.002)  # started 2 mm off
+    assert np.abs(fit - P).max() < 1e-6
+    rng = np.random.default_rng(4)
+    err_dlt, err_fit = [], []
+    for _ in range(50):
+        noisy_l, noisy_r = pl + rng.normal(0, 0.5, pl.shape), pr + rng.normal(0, 0.5, pr.shape)
+        dlt = geometry.triangulate(rig.Q_L, rig.Q_R, noisy_l, noisy_r)
+        fit = geometry.fit_rectangle(rig.Q_L, rig.Q_R, noisy_l, noisy_r, dlt)
+        sides = np.roll(fit, -1, axis=0) - fit
+        assert np.abs(np.sum(sides * np.roll(sides, -1, axis=0), axis=1)).max() < 1e-9  # right angles
+        assert np.abs(np.linalg.norm(sides[0]) - np.linalg.norm(sides[2])) < 1e-9
+        # one plane: the fourth corner lies in the plane of the other three
+        n = np.cross(fit[1] - fit[0], fit[3] - fit[0])
+        assert abs(n @ (fit[2] - fit[0])) < 1e-12
+        err_dlt.append(np.linalg.norm(dlt.mean(axis=0) - P.mean(axis=0)))
+        err_fit.append(np.linalg.norm(fit.mean(axis=0) - P.mean(axis=0)))
+    # the centre is found at least as well as from the four corners triangulated alone
+    assert np.mean(err_fit) <= np.mean(err_dlt) * 1.05

@@ -38,7 +38,8 @@ def _cmd_detect(args: argparse.Namespace) -> int:
             if not Path(path).is_file():
                 raise InputError(f"{what}: {path}: image file not found")
     rig = load_calibration(args.calib)
-    detector = Detector(rig, DetectConfig(method=args.method))
+    detector = Detector(rig, DetectConfig(method=args.method, triangulation=args.triangulation,
+                                          fit_rectangle=args.fit_rectangle))
     if sequence:
         return _detect_sequence(args, detector)
     return _detect_pair(args, detector)
@@ -350,6 +351,12 @@ def build_parser() -> argparse.ArgumentParser:
                    choices=["closed", "open", "auto-median", "auto-otsu", "lsd", "contour"],
                    help="segmentation: closed loop (the paper's), open loop, or a baseline "
                         "(default: %(default)s)")
+    p.add_argument("--triangulation", default="dlt", choices=["dlt", "optimal"],
+                   help="corner triangulation: linear (eq. 5) or optimal (Lindstrom) "
+                        "(default: %(default)s)")
+    p.add_argument("--fit-rectangle", action="store_true",
+                   help="replace each cover's four triangulated corners by one 3D rectangle "
+                        "fitted to both images (beyond the paper)")
     p.add_argument("--json", metavar="F", help="write the detection JSON here (a sequence: "
                                                "JSON Lines, one frame a line)")
     p.add_argument("--overlay", metavar="DIR", help="write the images with what was found "

@@ -434,3 +434,52 @@ def look_at(eye: ArrayLike, target: ArrayLike,
     x /= np.linalg.norm(x)
     y = np.cross(z, x)
     return make_transform(np.column_stack([x, y, z]), eye)
+
+
+def fit_rectangle(Q_L: ArrayLike, Q_R: ArrayLike, px_left: ArrayLike, px_right: ArrayLike,
+                  corners: ArrayLike) -> NDArray[np.float64]:
+    """One 3D rectangle fitted to a cover's corners in both images (beyond the paper).
+
+    Triangulating each corner alone (eq. 3–5) leaves four points that are neither coplanar
+    nor a rectangle. Here the cover is a rectangle — pose (rotation vector, centre) and
+    length, width: 8 parameters — whose projected corners best fit the 16 measured corner
+    coordinates of both images (Levenberg–Marquardt, scipy.optimize.least_squares), started
+    from the corners' own pose (:func:`pose_from_corners`).
+
+    Parameters
+    ----------
+    Q_L, Q_R : array_like, shape (3, 4)
+        World → pixel projections of the images the corners were measured in.
+    px_left, px_right : array_like, shape (4, 2)
+        Corresponding corners, pixels.
+    corners : array_like, shape (4, 3)
+        Their triangulation (world, metres): the starting point.
+
+    Returns
+    -------
+    ndarray, shape (4, 3)
+        The rectangle's corners, in the order of ``corners``.
+    """
+    from scipy.optimize import least_squares
+
+    Q_L, Q_R = np.asarray(Q_L, dtype=np.float64), np.asarray(Q_R, dtype=np.float64)
+    pl = np.asarray(px_left, dtype=np.float64).reshape(4, 2)
+    pr = np.asarray(px_right, dtype=np.float64).reshape(4, 2)
+    P0 = np.asarray(corners, dtype=np.float64).reshape(4, 3)
+    pose = pose_from_corners(P0)
+    # which quadrant of the book frame each corner lies in (x, y signs)
+    signs = np.sign((P0 - pose.center) @ pose.R[:, :2])
+    signs[signs == 0] = 1.0
+
+    def rectangle(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        R = Rotation.from_rotvec(x[:3]).as_matrix()
+        local = np.column_stack([0.5 * x[6] * signs[:, 0], 0.5 * x[7] * signs[:, 1], np.zeros(4)])
+        return x[3:6] + local @ R.T
+
+    def residuals(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        P = rectangle(x)
+        return np.concatenate([(project(Q_L, P) - pl).ravel(), (project(Q_R, P) - pr).ravel()])
+
+    x0 = np.concatenate([Rotation.from_matrix(pose.R).as_rotvec(), pose.center, pose.size[:2]])
+    sol = least_squares(residuals, x0, method="lm", x_scale=np.r_[[0.01] * 3, [0.001] * 3, [0.001] * 2])
+    return rectangle(sol.x)

@@ -52,6 +52,9 @@ class DetectConfig:
     max_tilt_deg : float
         A book lies on the desk: a reconstructed cover tilted more than this against the desk
         plane is not a cover (e.g. the outline of a book with its page block) and is dropped.
+    fit_rectangle : bool
+        Replace the four separately triangulated corners by one 3D rectangle fitted to both
+        images' corners (:func:`rovis.geometry.fit_rectangle`; beyond the paper).
     segment, stereo : SegmentConfig, StereoConfig
     """
 
@@ -65,6 +68,7 @@ class DetectConfig:
     roi_height: float = 0.10
     roi_margin_px: int = 8
     max_tilt_deg: float = 6.0
+    fit_rectangle: bool = False
     segment: SegmentConfig = field(default_factory=SegmentConfig)
     stereo: StereoConfig = field(default_factory=StereoConfig)
 
@@ -294,6 +298,11 @@ class Detector:
         P = geometry.triangulate(rig.Q_L, rig.Q_R, c_left, c_right, method=self.cfg.triangulation)
         if not np.all(np.isfinite(P)):
             return None
+        if self.cfg.fit_rectangle:
+            try:
+                P = geometry.fit_rectangle(rig.Q_L, rig.Q_R, c_left, c_right, P)
+            except ValueError:
+                return None
         try:
             pose = geometry.pose_from_corners(P, desk_plane)
         except ValueError:
