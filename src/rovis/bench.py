@@ -173,10 +173,14 @@ def render_frames(n: int, *, size: tuple[int, int] = (1024, 768), protocol: str 
     return rig, frames
 
 
-def time_pipeline(rig: StereoRig, frames: list[tuple[np.ndarray, np.ndarray]],
-                  method: str) -> PipelineTiming:
+def time_pipeline(rig: StereoRig, frames: list[tuple[np.ndarray, np.ndarray]], method: str, *,
+                  previous: list[tuple[np.ndarray, np.ndarray]] | None = None) -> PipelineTiming:
     """Per-frame and per-stage times of one Detector over ``frames``, on one core; the
-    detector is reset before each frame, and a first warm-up frame is not counted."""
+    detector is reset before each frame, and a first warm-up frame is not counted.
+
+    With ``previous`` (one frame per frame, e.g. the same scene with other sensor noise), each
+    timed frame follows its previous one untimed, as in a still camera's sequence: the closed
+    loop's controller then starts from that frame's optimum (warm start)."""
     from rovis.pipeline import DetectConfig, Detector
 
     cv2.setNumThreads(1)
@@ -184,41 +188,18 @@ def time_pipeline(rig: StereoRig, frames: list[tuple[np.ndarray, np.ndarray]],
     detector.detect(*frames[0])  # warm-up
     stages: dict[str, list[float]] = {s: [] for s in PIPELINE_STAGES}
     total, books = [], 0
-    for left, right in frames:
+    for k, (left, right) in enumerate(frames):
         detector.reset()
+        if previous is not None:
+            detector.detect(*previous[k])
         t0 = time.perf_counter()
         result = detector.detect(left, right)
         total.append(1e3 * (time.perf_counter() - t0))
         books += len(result.objects)
         for s in PIPELINE_STAGES:
             stages[s].append(result.timing_ms.get(s, 0.0))
-    return PipelineTiming(method, {s: np.array(v) for s, v in stages.items()}, np.array(total),
-                          books)
-
-
-def time_sequence(rig: StereoRig, frames: list[tuple[np.ndarray, np.ndarray]],
-                  next_frames: list[tuple[np.ndarray, np.ndarray]], method: str) -> PipelineTiming:
-    """Like :func:`time_pipeline`, but each timed frame follows one of the same scene (a
-    still camera): the closed loop's controller starts from that frame's optimum (warm
-    start), as in a ``rovis detect`` sequence. Only the second frame of each pair is timed."""
-    from rovis.pipeline import DetectConfig, Detector
-
-    cv2.setNumThreads(1)
-    detector = Detector(rig, DetectConfig(method=method))
-    detector.detect(*frames[0])  # warm-up
-    stages: dict[str, list[float]] = {s: [] for s in PIPELINE_STAGES}
-    total, books = [], 0
-    for first, (left, right) in zip(frames, next_frames):
-        detector.reset()
-        detector.detect(*first)
-        t0 = time.perf_counter()
-        result = detector.detect(left, right)
-        total.append(1e3 * (time.perf_counter() - t0))
-        books += len(result.objects)
-        for s in PIPELINE_STAGES:
-            stages[s].append(result.timing_ms.get(s, 0.0))
-    return PipelineTiming(f"{method}, warm", {s: np.array(v) for s, v in stages.items()},
-                          np.array(total), books)
+    name = method if previous is None else f"{method}, warm"
+    return PipelineTiming(name, {s: np.array(v) for s, v in stages.items()}, np.array(total), books)
 
 
 _BENCH: dict[str, object] = {}
@@ -296,7 +277,7 @@ def bench_pipeline(n: int = 30, *, size: tuple[int, int] = (1024, 768), method: 
     if "closed" in timings:  # the controller's warm start only pays in a sequence
         say("rovis bench: timing closed on one core, each frame after one of the same scene")
         _, next_frames = render_frames(n, size=size, protocol=protocol, seed=seed, take=1)
-        timings["closed, warm"] = time_sequence(rig, frames, next_frames, "closed")
+        timings["closed, warm"] = time_pipeline(rig, next_frames, "closed", previous=frames)
     fps_all = None
     if workers > 1:
         say(f"rovis bench: timing {method} on {workers} cores")
