@@ -204,7 +204,7 @@ class Detector:
                 objects.append(book)
         dropped = len(pairs) - len(objects)
         if dropped:
-            warnings.append(f"{dropped} matched quad(s) dropped: not flat on the desk "
+            warnings.append(f"{dropped} stereo pair(s) of quads dropped: not flat on the desk "
                             "(tilt or height out of range)")
         lap("pose")
         return FrameResult(
@@ -275,13 +275,15 @@ class Detector:
         out = []
         for quality, src, dst, k in todo:
             source = segs[src].corners[k]
-            if any(quad_overlap(source, q) > 0.3 for q in taken[src]):
+            overlap = self.cfg.stereo.transfer_max_overlap
+            if any(quad_overlap(source, q) > overlap for q in taken[src]):
                 continue  # already a book, from the other image's quad
-            T_H = segs[dst].T_H if segs[dst].T_H > 0 else segs[src].T_H
+            # the other image's Canny low threshold (LSD and contours set none: the open loop's)
+            T_H = segs[dst].T_H or segs[src].T_H or self.cfg.segment.open_T_H
             found = find_in_other_view(source, Q[src], Q[dst], desk_plane, grads[dst],
                                        CANNY_LOW_RATIO * T_H, gray_from=ideal[src],
                                        gray_to=ideal[dst], cfg=self.cfg.stereo)
-            if found is None or any(quad_overlap(found[0], q) > 0.3 for q in taken[dst]):
+            if found is None or any(quad_overlap(found[0], q) > overlap for q in taken[dst]):
                 continue
             taken[src].append(source)
             taken[dst].append(found[0])

@@ -48,6 +48,7 @@ class StereoConfig:
     max_cover_height: float = 0.10  # (the ROI's height)
     height_step: float = 0.002  # ~0.1 px of disparity at 1-2 m
     max_refine_px: float = 2.0  # refined corners this close to the predicted ones
+    transfer_max_overlap: float = 0.3  # of the smaller quad, with one already used
 
 
 @dataclass(frozen=True, eq=False)
