@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from rovis import geometry, marker
 from rovis.calib import StereoRig
+from rovis.extent import ExtentConfig, fit_pair_extent
 from rovis.imageio import to_gray_u8
 from rovis.results import BookDetection, FrameResult, SegmentationInfo
 from rovis.segment import CascadeController, SegmentConfig, Segmentation, gradients
@@ -52,10 +53,15 @@ class DetectConfig:
     max_tilt_deg : float
         A book lies on the desk: a reconstructed cover tilted more than this against the desk
         plane is not a cover (e.g. the outline of a book with its page block) and is dropped.
+    min_side_height : float
+        Metres. A quad with a side whose two corners are both lower than this above the desk
+        is dropped: that side is a line on the desk (a shadow's edge, a page block's foot).
     fit_rectangle : bool
         Replace the four separately triangulated corners by one 3D rectangle fitted to both
         images' corners (:func:`rovis.geometry.fit_rectangle`; beyond the paper).
-    segment, stereo : SegmentConfig, StereoConfig
+    segment, stereo, extent : SegmentConfig, StereoConfig, ExtentConfig
+        ``extent``: moving each cover's sides to its edges in both images
+        (:mod:`rovis.extent`; beyond the paper; needs the desk plane).
     """
 
     method: str = "closed"
@@ -68,9 +74,11 @@ class DetectConfig:
     roi_height: float = 0.10
     roi_margin_px: int = 8
     max_tilt_deg: float = 6.0
+    min_side_height: float = 0.003
     fit_rectangle: bool = False
     segment: SegmentConfig = field(default_factory=SegmentConfig)
     stereo: StereoConfig = field(default_factory=StereoConfig)
+    extent: ExtentConfig = field(default_factory=ExtentConfig)
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -197,16 +205,18 @@ class Detector:
         lap("stereo")
 
         # 5. triangulation and pose
-        objects = []
-        for pair in pairs:
-            book = self._reconstruct(rig, pair, desk_plane, len(objects))
-            if book is not None:
-                objects.append(book)
-        dropped = len(pairs) - len(objects)
+        books = [(pair, self._reconstruct(rig, pair, desk_plane)) for pair in pairs]
+        found = [(pair, book) for pair, book in books if book is not None]
+        dropped = len(pairs) - len(found)
         if dropped:
             warnings.append(f"{dropped} stereo pair(s) of quads dropped: not flat on the desk "
                             "(tilt or height out of range)")
         lap("pose")
+        # beyond the paper: each cover's sides moved to its edges, seen in both images
+        if (self.cfg.extent.grow or self.cfg.extent.shrink) and desk_plane is not None:
+            found = self._fit_extents(rig, segs, grads, found, desk_plane)
+            lap("extent")
+        objects = [replace(book, id=i) for i, (_, book) in enumerate(found)]
         return FrameResult(
             objects=objects, desk_plane=None if desk_plane is None else desk_plane.copy(),
             world_frame=rig.world_frame,
@@ -294,8 +304,37 @@ class Detector:
                             quality, 0.0, transferred=src))
         return out
 
-    def _reconstruct(self, rig: StereoRig, pair: Pair, desk_plane: NDArray[np.float64] | None,
-                     index: int) -> BookDetection | None:
+    def _fit_extents(self, rig: StereoRig, segs: dict[str, Segmentation],
+                     grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
+                     desk_plane: NDArray[np.float64]) -> list[tuple[Pair, BookDetection]]:
+        """Books whose cover stops at a printed line or reaches beyond its end, with their
+        sides moved to the cover's edges (:mod:`rovis.extent`) if the new cover still lies
+        flat on the desk; a grown cover then overlapping another book (its other part)
+        replaces it."""
+        Q = {"left": rig.Q_L, "right": rig.Q_R}
+        strength = {cam: CANNY_LOW_RATIO * (segs[cam].T_H or self.cfg.segment.open_T_H)
+                    for cam in Q}
+        out = []
+        for pair, book in found:
+            new = fit_pair_extent({"left": pair.left, "right": pair.right}, Q, grads, strength,
+                                  desk_plane, self.cfg.extent)
+            if new is not None:
+                moved = replace(pair, left=new["left"], right=new["right"])
+                fitted = self._reconstruct(rig, moved, desk_plane)
+                if fitted is not None:
+                    pair, book = moved, fitted
+            out.append((pair, book))
+        # largest first: a part of a grown cover overlapping it gives way
+        area = [cv2.contourArea(pair.left.astype(np.float32)) for pair, _ in out]
+        kept: list[int] = []
+        for i in np.argsort(area)[::-1]:
+            if not any(quad_overlap(out[i][0].left, out[k][0].left)
+                       > self.cfg.stereo.transfer_max_overlap for k in kept):
+                kept.append(int(i))
+        return [out[i] for i in sorted(kept)]
+
+    def _reconstruct(self, rig: StereoRig, pair: Pair,
+                     desk_plane: NDArray[np.float64] | None) -> BookDetection | None:
         c_left, c_right = pair.left, pair.right
         P = geometry.triangulate(rig.Q_L, rig.Q_R, c_left, c_right, method=self.cfg.triangulation)
         if not np.all(np.isfinite(P)):
@@ -316,11 +355,16 @@ class Detector:
             low = self.cfg.stereo.min_height if pair.transferred else 0.0
             if tilt > self.cfg.max_tilt_deg or not (low < pose.size[2] <= self.cfg.stereo.max_height):
                 return None
+            # a side with both ends on the desk is a line on the desk (a shadow's edge, the
+            # page block's foot), not the edge of a cover: the quad is no cover
+            h = geometry.plane_distance(desk_plane, P)
+            if np.any(np.maximum(h, np.roll(h, -1)) < self.cfg.min_side_height):
+                return None
         reproj = np.concatenate([
             np.linalg.norm(geometry.project(rig.Q_L, P) - c_left, axis=1),
             np.linalg.norm(geometry.project(rig.Q_R, P) - c_right, axis=1)])
         return BookDetection(
-            id=index, pose=pose, corners_world=P,
+            id=0, pose=pose, corners_world=P,
             corners_left_px=rig.distort_points(c_left, "left"),
             corners_right_px=rig.distort_points(c_right, "right"),
             reprojection_error_px=float(reproj.mean()),

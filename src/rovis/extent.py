@@ -1,0 +1,274 @@
+"""Cover extent in 3D: each side of a reconstructed cover moved to the cover's real edge.
+
+Beyond the paper. Two segmentation errors leave a cover's corners centimetres off while
+every side still sits on a strong edge, so no test in one image can catch them:
+
+- *partial cover*: a title band or printed block across the cover makes an edge as strong
+  as the cover's own, and the quad stops there;
+- *over-reach*: a side lies on a line beyond the cover's end (a shadow, the desk's grain, a
+  neighbouring book's edge), and the quad takes in a strip of desk.
+
+The two images together tell. The cover's plane is known from the triangulated corners
+(parallel to the desk), so any side can be moved in that plane and projected into both
+images. A side moved outward (:func:`_grow_side`) is kept where its two neighbouring sides
+go on carrying edges in both images up to it and it is an edge itself in both; beyond a
+real cover edge the neighbours' lines run over the desk, a page block or another book,
+where no edge follows them. A side whose neighbours carry no edge next to it, over
+``min_gap`` or more in both images (:func:`_shrink_side`), is moved inward to where their
+edges start.
+
+A side grows only where both its neighbours are the cover's own edges: a quad cut short on
+two adjacent sides (a printed block in a corner) stays as it is.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rovis import geometry
+from rovis.segment.edges import Gradients
+
+
+@dataclass(frozen=True)
+class ExtentConfig:
+    """Limits of the side search (metres unless noted)."""
+
+    grow: bool = True
+    shrink: bool = True
+    step: float = 0.001
+    min_grow: float = 0.008  # a smaller move finds the same side again
+    min_gap: float = 0.015  # a side's neighbours without edges this far: it is beyond the cover
+    max_side: float = 0.36  # no book is larger
+    min_support: float = 0.7  # of the samples, in both images: moved side and its neighbours
+    max_angle_deg: float = 25.0  # gradient this close to across the line counts
+    gap_edge_ratio: float = 0.35  # of a side's median edge strength: where its edge is missing
+
+
+def fit_extent(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
+               grads: dict[str, Gradients], min_strength: dict[str, float],
+               desk_plane: NDArray[np.float64], cfg: ExtentConfig = ExtentConfig(),
+               ) -> NDArray[np.float64] | None:
+    """The cover's corners with its sides moved to the cover's edges, or None if none moves.
+
+    Sides reaching beyond the cover are pulled in first, then sides short of it pushed out.
+
+    Parameters
+    ----------
+    P : ndarray, shape (4, 3)
+        Triangulated cover corners (world, metres), in cyclic order.
+    Q : dict camera -> ndarray, shape (3, 4)
+        World → ideal pixel projections of both cameras.
+    grads : dict camera -> Gradients
+        Both images' gradients.
+    min_strength : dict camera -> float
+        Gradient across a line (Sobel units) that counts as an edge, per image (the image's
+        Canny low threshold).
+    desk_plane : ndarray, shape (4,)
+        ``[nx, ny, nz, d]`` (world, normal up): the cover plane is parallel to it at the
+        corners' mean height.
+
+    Returns
+    -------
+    ndarray, shape (4, 3) or None
+        The new corners (on the cover plane), same order.
+    """
+    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+    c = P.mean(axis=0)
+    P = P - np.outer((P - c) @ up, up)  # onto the cover plane
+    drop = -float(up @ c + desk_plane[3] / np.linalg.norm(desk_plane[:3])) * up  # cover -> desk
+    moved = False
+    for s in range(4 if cfg.shrink else 0):
+        d = _shrink_side(P, s, Q, grads, min_strength, cfg)
+        if d < 0:
+            P = _moved(P, s, np.array([d]))[0]
+            moved = True
+    for _ in range(2 if cfg.grow else 0):  # a side's growth lengthens its neighbours: twice
+        changed = False
+        for s in range(4):
+            d = _grow_side(P, s, Q, grads, min_strength, drop, cfg)
+            if d > 0:
+                P = _moved(P, s, np.array([d]))[0]
+                changed = moved = True
+        if not changed:
+            break
+    return P if moved else None
+
+
+def fit_pair_extent(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],
+                    grads: dict[str, Gradients], min_strength: dict[str, float],
+                    desk_plane: NDArray[np.float64], cfg: ExtentConfig = ExtentConfig(),
+                    ) -> dict[str, NDArray[np.float64]] | None:
+    """:func:`fit_extent` for a stereo pair of ideal-pixel corners (4, 2) per camera: the
+    new corners projected into both images (None if no side moved). They are not refit in
+    each image alone: a page-block or neighbouring edge a pixel or two away would pull the
+    two images apart and tilt the cover by degrees."""
+    P = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
+    if not np.all(np.isfinite(P)):
+        return None
+    G = fit_extent(P, Q, grads, min_strength, desk_plane, cfg)
+    if G is None:
+        return None
+    return {cam: geometry.project(Q[cam], G) for cam in ("left", "right")}
+
+
+def _moved(P: NDArray[np.float64], s: int, d: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Corners (len(d), 4, 3) with side s (corner s to s+1) moved outward by ``d`` metres,
+    its end corners sliding along the neighbouring sides."""
+    a, b = s, (s + 1) % 4
+    u_a = _unit(P[a] - P[(a - 1) % 4])  # side s-1, continued beyond corner a
+    u_b = _unit(P[b] - P[(b + 1) % 4])  # side s+1, continued beyond corner b
+    out = np.repeat(P[None], len(d), axis=0)
+    out[:, a] += d[:, None] * u_a
+    out[:, b] += d[:, None] * u_b
+    return out
+
+
+def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
+               grads: dict[str, Gradients], min_strength: dict[str, float],
+               drop: NDArray[np.float64], cfg: ExtentConfig) -> float:
+    """How far side ``s`` may move outward (metres; 0: not at all). ``drop`` (3,) moves a
+    cover point straight down onto the desk."""
+    a, b = s, (s + 1) % 4
+    # Neighbouring sides' lengths bound the growth (no book is larger than max_side).
+    room = cfg.max_side - max(np.linalg.norm(P[a] - P[(a - 1) % 4]),
+                              np.linalg.norm(P[b] - P[(b + 1) % 4]))
+    if room < cfg.min_grow:
+        return 0.0
+    d = np.arange(cfg.step, room + 1e-9, cfg.step)
+    moved = _moved(P, s, d)  # (D, 4, 3)
+    ok = np.ones(len(d), bool)
+    for cam in ("left", "right"):
+        thr = min_strength[cam]
+        # A side facing the camera shows the page block below it: lines on the block (the
+        # pages, its bottom edge) pass every test of a cover edge, and a side along the
+        # epipolar lines has no stereo check. The new side must lie beyond the block's
+        # bottom edge in the image.
+        q = geometry.project(Q[cam], P)
+        side = q[b] - q[a]
+        n_out = np.array([side[1], -side[0]]) / max(float(np.linalg.norm(side)), 1e-9)
+        if n_out @ (0.5 * (q[a] + q[b]) - q.mean(axis=0)) < 0:
+            n_out = -n_out
+        bottom = geometry.project(Q[cam], 0.5 * (P[a] + P[b]) + drop)
+        mid = geometry.project(Q[cam], 0.5 * (moved[:, a] + moved[:, b]))
+        ok &= (mid - bottom) @ n_out > 2.0
+        # the neighbouring sides' continuations: edge hits at each step, then the share of
+        # hits from the old corner out to each offset
+        for k, old in ((a, P[a]), (b, P[b])):
+            ext = geometry.project(Q[cam], moved[:, k])  # (D, 2)
+            start = geometry.project(Q[cam], old[None])[0]
+            hit = _hits(grads[cam], start, ext, thr, cfg.max_angle_deg)
+            ok &= np.cumsum(hit) / np.arange(1, len(d) + 1) >= cfg.min_support
+    is_edge, strength = _side_scores(moved, a, b, Q, grads, min_strength, cfg)
+    ok &= is_edge & (d >= cfg.min_grow)
+    if not ok.any():
+        return 0.0
+    # The edge is where the moved side is strongest within the last run of offsets that
+    # pass (the ±1 px tolerance lets a few neighbouring offsets pass too).
+    last = int(np.nonzero(ok)[0][-1])
+    first = last
+    while first > 0 and ok[first - 1]:
+        first -= 1
+    k = first + int(np.argmax(strength[first:last + 1]))
+    if 0 < k < len(d) - 1:  # parabola through the neighbours: sub-step offset
+        s0, s1, s2 = strength[k - 1:k + 2]
+        denom = s0 - 2 * s1 + s2
+        if denom < 0:
+            return float(d[k] + cfg.step * np.clip(0.5 * (s0 - s2) / denom, -0.5, 0.5))
+    return float(d[k])
+
+
+def _shrink_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
+                 grads: dict[str, Gradients], min_strength: dict[str, float],
+                 cfg: ExtentConfig) -> float:
+    """How far side ``s`` must move inward (metres, negative; 0: it stays).
+
+    A side placed beyond the cover's end (on a line of the desk or of a neighbouring book)
+    leaves its neighbouring sides without edges next to it, in both images. If one does
+    over ``cfg.min_gap`` or more, the side is looked for where that run of missing edges
+    ends (−5 to +15 mm around it): the strongest offset at which the moved side is an
+    edge in both images."""
+    a, b = s, (s + 1) % 4
+    gaps = []
+    for corner, towards in ((a, (a - 1) % 4), (b, (b + 1) % 4)):
+        length = float(np.linalg.norm(P[towards] - P[corner]))
+        t = np.arange(0.0, length, cfg.step)
+        pts = P[corner] + np.outer(t / length, P[towards] - P[corner])  # from the corner on
+        half = len(t) // 2
+        runs = []
+        for cam in ("left", "right"):
+            q = geometry.project(Q[cam], pts)
+            edge = _edge(grads[cam], q[0], q[1:], cfg.max_angle_deg)
+            # an edge as the side's own: in dim light the threshold alone passes desk grain
+            hit = edge[:half] >= max(min_strength[cam], cfg.gap_edge_ratio * np.median(edge))
+            # the first place where edges come back (most of 5 mm carry them)
+            w = max(1, int(round(0.005 / cfg.step)))
+            dense = np.convolve(hit.astype(float), np.ones(w) / w, mode="valid") >= 0.6
+            runs.append(float(t[1 + int(np.argmax(dense))]) if dense.any() else float(t[half]))
+        gaps.append(min(runs))  # missing in both images
+    gap = max(gaps)
+    if gap < cfg.min_gap:
+        return 0.0
+    d = -np.arange(gap - 0.005, gap + 0.015, cfg.step)
+    ok, strength = _side_scores(_moved(P, s, d), a, b, Q, grads, min_strength, cfg)
+    if not ok.any():
+        return 0.0
+    return float(d[np.argmax(np.where(ok, strength, -np.inf))])
+
+
+def _side_scores(moved: NDArray[np.float64], a: int, b: int, Q: dict[str, NDArray[np.float64]],
+                 grads: dict[str, Gradients], min_strength: dict[str, float],
+                 cfg: ExtentConfig) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
+    """For each candidate (D, 4, 3), whether its side from corner ``a`` to ``b`` is an edge
+    in both images (``min_support`` of 24 samples, ends trimmed), and its mean gradient
+    across, summed over the images in units of each image's threshold."""
+    ok = np.ones(len(moved), bool)
+    strength = np.zeros(len(moved))
+    u = np.linspace(0.1, 0.9, 24)
+    for cam in ("left", "right"):
+        thr = min_strength[cam]
+        pa = geometry.project(Q[cam], moved[:, a])
+        pb = geometry.project(Q[cam], moved[:, b])
+        pts = pa[:, None] + u[None, :, None] * (pb - pa)[:, None]  # (D, S, 2)
+        hit = _hits(grads[cam], pa[:, None], pts, thr, cfg.max_angle_deg, along=pb - pa)
+        ok &= hit.mean(axis=1) >= cfg.min_support
+        strength += _across(grads[cam], pts, pb - pa) / thr
+    return ok, strength
+
+
+def _across(grad: Gradients, pts: NDArray[np.float64], along: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Mean gradient across lines (D,) sampled at ``pts`` (D, S, 2), direction ``along`` (D, 2)."""
+    t = along / np.maximum(np.linalg.norm(along, axis=-1, keepdims=True), 1e-9)
+    gx, gy = grad.sample(pts[..., 0], pts[..., 1])
+    return np.abs(gx * -t[:, None, 1] + gy * t[:, None, 0]).mean(axis=1)
+
+
+def _hits(grad: Gradients, start: NDArray[np.float64], pts: NDArray[np.float64], thr: float,
+          max_angle_deg: float, along: NDArray[np.float64] | None = None) -> NDArray[np.bool_]:
+    """Whether each point (..., 2) of a line through ``start`` (direction ``along``, or
+    towards the point) lies on an edge: :func:`_edge` at least ``thr``."""
+    return _edge(grad, start, pts, max_angle_deg, along) >= thr
+
+
+def _edge(grad: Gradients, start: NDArray[np.float64], pts: NDArray[np.float64],
+          max_angle_deg: float, along: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+    """Gradient across the line at each point (..., 2), best of the point and ±1 px across;
+    0 where the gradient is more than ``max_angle_deg`` off the line's normal."""
+    direction = pts - start if along is None else np.broadcast_to(
+        np.asarray(along)[:, None, :], pts.shape)
+    direction = direction / np.maximum(np.linalg.norm(direction, axis=-1, keepdims=True), 1e-9)
+    n = np.stack([-direction[..., 1], direction[..., 0]], axis=-1)
+    cos_max = np.cos(np.radians(max_angle_deg))
+    best = np.zeros(pts.shape[:-1])
+    for off in (-1.0, 0.0, 1.0):
+        q = pts + off * n
+        gx, gy = grad.sample(q[..., 0], q[..., 1])
+        across = np.abs(gx * n[..., 0] + gy * n[..., 1])
+        best = np.maximum(best, np.where(across >= cos_max * np.hypot(gx, gy), across, 0.0))
+    return best
+
+
+def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    return v / max(float(np.linalg.norm(v)), 1e-12)

@@ -1,0 +1,104 @@
+"""Cover extent in 3D (rovis.extent): sides moved to the cover's edges in both images."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import cv2
+import numpy as np
+import pytest
+
+from rovis import geometry
+from rovis.extent import ExtentConfig, fit_pair_extent
+from rovis.pipeline import Detector, Pair
+from rovis.segment import SegmentConfig, gradients
+from rovis.segment.edges import CANNY_LOW_RATIO
+from rovis.synth import render, sample_scene
+from rovis.synth.scene import Book
+from rovis.synth.textures import CoverSpec
+
+THICKNESS = 0.02
+
+
+@pytest.fixture(scope="module")
+def lone_book():
+    """One plain dark book, 22 × 15 × 2 cm, alone on the desk at 500 lx."""
+    sc = sample_scene(3, lux=500.0, n_books=0)
+    book = Book(center=(0.45, 0.33, THICKNESS), yaw_deg=20.0, size=(0.22, 0.15, THICKNESS),
+                cover=CoverSpec(kind="plain", albedo=0.08, seed=1))
+    sc = replace(sc, books=(book,), papers=(), mugs=(), pens=(), cables=())
+    r = render(sc, 3)
+    rig = sc.rig
+    grads = {}
+    for cam, raw in (("left", r.left), ("right", r.right)):
+        K, D = rig.intrinsics(cam)
+        maps = cv2.initUndistortRectifyMap(K, D, None, K, rig.image_size, cv2.CV_16SC2)
+        grads[cam] = gradients(cv2.remap(raw, *maps, cv2.INTER_LINEAR))
+    Q = {"left": rig.Q_L, "right": rig.Q_R}
+    return np.array(r.truth["books"][0]["corners"]), Q, grads, np.asarray(r.truth["desk_plane"]), rig
+
+
+def _side_moved(P, s, d):
+    """Corners with side s (corner s to s+1) moved outward by d metres (inward if d < 0)."""
+    out = P.copy()
+    a, b = s, (s + 1) % 4
+    out[a] += d * (P[a] - P[a - 1]) / np.linalg.norm(P[a] - P[a - 1])
+    out[b] += d * (P[b] - P[(b + 1) % 4]) / np.linalg.norm(P[b] - P[(b + 1) % 4])
+    return out
+
+
+def _fit(P, Q, grads, desk):
+    strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
+    corners = {cam: geometry.project(Q[cam], P) for cam in Q}
+    new = fit_pair_extent(corners, Q, grads, {"left": strength, "right": strength}, desk)
+    if new is None:
+        return None
+    return geometry.triangulate(Q["left"], Q["right"], new["left"], new["right"])
+
+
+@pytest.mark.parametrize("cut", [((2, -0.06),), ((0, -0.05), (2, -0.04)), ((3, -0.03),)])
+def test_a_cover_cut_short_grows_to_its_edges(lone_book, cut):
+    # a quad ending at printed lines across the cover (one band, or one each side); the
+    # sides next to a cut side are the cover's own edges
+    P, Q, grads, desk, _ = lone_book
+    partial = P
+    for s, d in cut:
+        partial = _side_moved(partial, s, d)
+    got = _fit(partial, Q, grads, desk)
+    assert got is not None
+    # every corner back on the true one, to grasping accuracy
+    assert np.linalg.norm(got - P, axis=1).max() < 0.004
+
+
+def test_a_side_beyond_the_cover_is_pulled_in(lone_book):
+    P, Q, grads, desk, _ = lone_book
+    got = _fit(_side_moved(P, 1, 0.035), Q, grads, desk)
+    assert got is not None
+    assert np.linalg.norm(got - P, axis=1).max() < 0.004
+
+
+def test_a_whole_cover_keeps_its_sides(lone_book):
+    P, Q, grads, desk, _ = lone_book
+    got = _fit(P, Q, grads, desk)
+    assert got is None or np.linalg.norm(got - P, axis=1).max() < 0.002
+
+
+def test_switched_off_nothing_moves(lone_book):
+    P, Q, grads, desk, _ = lone_book
+    strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
+    partial = _side_moved(P, 2, -0.06)
+    corners = {cam: geometry.project(Q[cam], partial) for cam in Q}
+    assert fit_pair_extent(corners, Q, grads, {"left": strength, "right": strength}, desk,
+                           ExtentConfig(grow=False, shrink=False)) is None
+
+
+@pytest.mark.parametrize("low, kept", [(0.004, True), (0.002, False)])
+def test_a_quad_with_a_side_on_the_desk_is_no_cover(lone_book, low, kept):
+    # one side on a line of the desk (a shadow's edge, a page block's foot), the other at
+    # cover height: flat enough for the tilt test (< 6°), but no cover
+    P, Q, _, desk, rig = lone_book
+    quad = P.copy()
+    quad[:2, 2] = 0.012
+    quad[2:, 2] = low
+    pair = Pair(geometry.project(Q["left"], quad), geometry.project(Q["right"], quad), 1.0, 0.0)
+    assert (Detector(rig)._reconstruct(rig, pair, desk) is not None) == kept
