@@ -68,7 +68,7 @@ def bench_triangulation(n_points: int = 1_000_000, *, repeats: int = 7,
 
 # --------------------------------------------------------------------------- the pipeline
 
-PIPELINE_STAGES = ("marker", "undistort", "gradients", "segmentation", "stereo", "pose")
+PIPELINE_STAGES = ("marker", "undistort", "gradients", "segmentation", "stereo", "pose", "extent")
 
 
 @dataclass(frozen=True)

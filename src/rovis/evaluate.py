@@ -714,10 +714,12 @@ def summary_table(summary: Mapping[str, Mapping[str, Any]]) -> str:
 
 
 def breakdown_table(groups: Mapping[str, Mapping[str, Mapping[str, Any]]], title: str) -> str:
-    """Recall, false positives and mean position/yaw error per group and method."""
+    """Recall, false positives, mean position/yaw error and the largest position error per
+    group and method (the grasp tolerance is on the largest)."""
     methods = list(next(iter(groups.values())).keys()) if groups else []
     rows = [f"{title:<14}{'method':<14}{'images':>7}{'recall':>8}{'FP/img':>8}"
-            f"{'|X_e| m':>9}{'|Y_e| m':>9}{'|Z_e| m':>9}{'|Ψ_e| °':>9}"]
+            f"{'|X_e| m':>9}{'|Y_e| m':>9}{'|Z_e| m':>9}{'|Ψ_e| °':>9}"
+            f"{'max|X_e|':>10}{'max|Y_e|':>10}{'max|Z_e|':>10}"]
     for label, per_method in groups.items():
         for k, m in enumerate(methods):
             s = per_method[m]
@@ -725,13 +727,15 @@ def breakdown_table(groups: Mapping[str, Mapping[str, Mapping[str, Any]]], title
             rows.append(f"{label if k == 0 else '':<14}{m:<14}{s['images']:>7}"
                         f"{_pct(s['recall']):>8}{_num(s['fp_per_image'], 8, 2)}"
                         + "".join(_num(e[c]["mean"], 9, 4) for c in ("x", "y", "z"))
-                        + _num(e["psi_deg"]["mean"], 9, 2))
+                        + _num(e["psi_deg"]["mean"], 9, 2)
+                        + "".join(_num(e[c]["max"], 10, 4) for c in ("x", "y", "z")))
     return "\n".join(rows)
 
 
 def report(ev: Evaluation) -> str:
     """The text ``rovis eval`` prints: per method the Tables I/II block, a summary of all
-    methods, and the breakdowns by light level, light and exposure."""
+    methods, and the breakdowns by light level, light and exposure (means, and the largest
+    position errors in metres)."""
     summary = ev.summary()
     parts = [method_table(m, summary[m], paper_reference(m, ev.protocol)) for m in ev.methods]
     parts.append("All methods (mean absolute errors of the matched books):\n"

@@ -212,6 +212,10 @@ def _shrink_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64
     if gap < cfg.min_gap:
         return 0.0
     d = -np.arange(gap - 0.005, gap + 0.015, cfg.step)
+    d = d[-d < 0.8 * min(np.linalg.norm(P[a] - P[(a - 1) % 4]),  # short of the opposite side
+                         np.linalg.norm(P[b] - P[(b + 1) % 4]))]
+    if len(d) == 0:
+        return 0.0
     ok, strength = _side_scores(_moved(P, s, d), a, b, Q, grads, min_strength, cfg)
     if not ok.any():
         return 0.0

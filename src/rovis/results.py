@@ -53,7 +53,9 @@ class BookDetection:
     corners_left_px, corners_right_px : ndarray, shape (4, 2)
         The cover corners in the raw images, pixels, P1 (top-left in the left image) first.
     reprojection_error_px : float
-        Mean distance between the measured corners and the reprojected 3D corners.
+        Mean distance between the measured corners and the reprojected 3D corners (about 0
+        for a cover whose sides :mod:`rovis.extent` moved: its corners are then the
+        projections of the fitted 3D cover).
     quality : float
         Fraction of the cover's sides backed by edge pixels (worst of the two images; of the
         one image whose segmentation found it, for a cover found in the other image by
