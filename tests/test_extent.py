@@ -92,7 +92,7 @@ def test_switched_off_nothing_moves(lone_book):
                            ExtentConfig(grow=False, shrink=False)) is None
 
 
-@pytest.mark.parametrize("low, kept", [(0.004, True), (0.002, False)])
+@pytest.mark.parametrize("low, kept", [(0.003, True), (0.001, False)])
 def test_a_quad_with_a_side_on_the_desk_is_no_cover(lone_book, low, kept):
     # one side on a line of the desk (a shadow's edge, a page block's foot), the other at
     # cover height: flat enough for the tilt test (< 6°), but no cover

@@ -54,8 +54,8 @@ class DetectConfig:
         A book lies on the desk: a reconstructed cover tilted more than this against the desk
         plane is not a cover (e.g. the outline of a book with its page block) and is dropped.
     min_side_height : float
-        Metres. A quad with a side whose two corners are both lower than this above the desk
-        is dropped: that side is a line on the desk (a shadow's edge, a page block's foot).
+        Metres. A quad with a side whose midpoint is lower than this above the desk is
+        dropped: that side is a line on the desk (a shadow's edge, a page block's foot).
     fit_rectangle : bool
         Replace the four separately triangulated corners by one 3D rectangle fitted to both
         images' corners (:func:`rovis.geometry.fit_rectangle`; beyond the paper).
@@ -74,7 +74,7 @@ class DetectConfig:
     roi_height: float = 0.10
     roi_margin_px: int = 8
     max_tilt_deg: float = 6.0
-    min_side_height: float = 0.003
+    min_side_height: float = 0.002
     fit_rectangle: bool = False
     segment: SegmentConfig = field(default_factory=SegmentConfig)
     stereo: StereoConfig = field(default_factory=StereoConfig)
@@ -358,7 +358,7 @@ class Detector:
             # a side with both ends on the desk is a line on the desk (a shadow's edge, the
             # page block's foot), not the edge of a cover: the quad is no cover
             h = geometry.plane_distance(desk_plane, P)
-            if np.any(np.maximum(h, np.roll(h, -1)) < self.cfg.min_side_height):
+            if np.any(0.5 * (h + np.roll(h, -1)) < self.cfg.min_side_height):  # side midpoints
                 return None
         reproj = np.concatenate([
             np.linalg.norm(geometry.project(rig.Q_L, P) - c_left, axis=1),
