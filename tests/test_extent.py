@@ -1,4 +1,5 @@
-"""Cover extent in 3D (rovis.extent): sides moved to the cover's edges in both images."""
+"""Cover extent in 3D (rovis.extent): sides moved to the cover's edges in both images; and
+the pose checks that drop quads no book makes."""
 
 from __future__ import annotations
 
@@ -102,3 +103,15 @@ def test_a_quad_with_a_side_on_the_desk_is_no_cover(lone_book, low, kept):
     quad[2:, 2] = low
     pair = Pair(geometry.project(Q["left"], quad), geometry.project(Q["right"], quad), 1.0, 0.0)
     assert (Detector(rig)._reconstruct(rig, pair, desk) is not None) == kept
+
+
+@pytest.mark.parametrize("length, kept", [(0.30, True), (0.50, False)])
+def test_a_cover_longer_than_any_book_is_dropped(lone_book, length, kept):
+    # e.g. two books end to end taken for one cover
+    P, Q, _, desk, rig = lone_book
+    quad = _side_moved(P, 1, length - np.linalg.norm(P[1] - P[0]))
+    pair = Pair(geometry.project(Q["left"], quad), geometry.project(Q["right"], quad), 1.0, 0.0)
+    book = Detector(rig)._reconstruct(rig, pair, desk)
+    assert (book is not None) == kept
+    if kept:
+        assert max(book.pose.size[:2]) == pytest.approx(length, abs=1e-3)

@@ -53,6 +53,9 @@ class DetectConfig:
     max_tilt_deg : float
         A book lies on the desk: a reconstructed cover tilted more than this against the desk
         plane is not a cover (e.g. the outline of a book with its page block) and is dropped.
+    max_cover_side : float
+        Metres. A reconstructed cover longer than this is no book (an atlas is ~0.4 m): two
+        books end to end, or a cover and a line beyond it.
     min_side_height : float
         Metres. A quad with a side whose midpoint is lower than this above the desk is
         dropped: that side is a line on the desk (a shadow's edge, a page block's foot).
@@ -75,6 +78,7 @@ class DetectConfig:
     roi_margin_px: int = 8
     max_tilt_deg: float = 6.0
     min_side_height: float = 0.002
+    max_cover_side: float = 0.45
     fit_rectangle: bool = False
     segment: SegmentConfig = field(default_factory=SegmentConfig)
     stereo: StereoConfig = field(default_factory=StereoConfig)
@@ -348,6 +352,8 @@ class Detector:
             pose = geometry.pose_from_corners(P, desk_plane)
         except ValueError:
             return None
+        if max(pose.size[0], pose.size[1]) > self.cfg.max_cover_side:
+            return None  # two books end to end, or a cover and a line beyond it
         if desk_plane is not None:
             tilt = np.degrees(np.arccos(np.clip(pose.R[:, 2] @ desk_plane[:3], -1, 1)))
             # a cover found in one image only must stand as high as the search assumed: a
@@ -355,7 +361,7 @@ class Detector:
             low = self.cfg.stereo.min_height if pair.transferred else 0.0
             if tilt > self.cfg.max_tilt_deg or not (low < pose.size[2] <= self.cfg.stereo.max_height):
                 return None
-            # a side with both ends on the desk is a line on the desk (a shadow's edge, the
+            # a side lying on the desk is a line on the desk (a shadow's edge, the
             # page block's foot), not the edge of a cover: the quad is no cover
             h = geometry.plane_distance(desk_plane, P)
             if np.any(0.5 * (h + np.roll(h, -1)) < self.cfg.min_side_height):  # side midpoints
