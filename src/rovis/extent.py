@@ -80,10 +80,12 @@ def fit_extent(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     P = P - np.outer((P - c) @ up, up)  # onto the cover plane
     drop = -float(up @ c + desk_plane[3] / np.linalg.norm(desk_plane[:3])) * up  # cover -> desk
     moved = False
+    runs = _missing_runs(P, Q, grads, min_strength, cfg) if cfg.shrink else None
     for s in range(4 if cfg.shrink else 0):
-        d = _shrink_side(P, s, Q, grads, min_strength, cfg)
+        d = _shrink_side(P, s, runs, Q, grads, min_strength, cfg)
         if d < 0:
             P = _moved(P, s, np.array([d]))[0]
+            runs = _missing_runs(P, Q, grads, min_strength, cfg)
             moved = True
     for _ in range(2 if cfg.grow else 0):  # a side's growth lengthens its neighbours: twice
         changed = False
@@ -161,10 +163,16 @@ def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]]
             start = geometry.project(Q[cam], old[None])[0]
             hit = _hits(grads[cam], start, ext, thr, cfg.max_angle_deg)
             ok &= np.cumsum(hit) / np.arange(1, len(d) + 1) >= cfg.min_support
-    is_edge, strength = _side_scores(moved, a, b, Q, grads, min_strength, cfg)
-    ok &= is_edge & (d >= cfg.min_grow)
+    ok &= d >= cfg.min_grow
+    if not ok.any():  # (the common case: a cover's own side, its neighbours end there)
+        return 0.0
+    idx = np.nonzero(ok)[0]  # the moved side itself only where its neighbours reach
+    is_edge, strength_at = _side_scores(moved[idx], a, b, Q, grads, min_strength, cfg)
+    ok[idx] = is_edge
     if not ok.any():
         return 0.0
+    strength = np.zeros(len(d))
+    strength[idx] = strength_at
     # The edge is where the moved side is strongest within the last run of offsets that
     # pass (the ±1 px tolerance lets a few neighbouring offsets pass too).
     last = int(np.nonzero(ok)[0][-1])
@@ -180,35 +188,46 @@ def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]]
     return float(d[k])
 
 
-def _shrink_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
-                 grads: dict[str, Gradients], min_strength: dict[str, float],
-                 cfg: ExtentConfig) -> float:
+def _missing_runs(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
+                  grads: dict[str, Gradients], min_strength: dict[str, float],
+                  cfg: ExtentConfig) -> NDArray[np.float64]:
+    """(4, 2): for each side, how far from its first and from its second corner (metres, up
+    to half its length) its edge is missing in both images."""
+    runs = np.zeros((4, 2))
+    w = max(1, int(round(0.005 / cfg.step)))
+    for k in range(4):
+        length = float(np.linalg.norm(P[(k + 1) % 4] - P[k]))
+        t = np.arange(0.0, length + 1e-9, cfg.step)
+        pts = P[k] + np.outer(t / length, P[(k + 1) % 4] - P[k])
+        half = len(t) // 2
+        found = np.full(2, np.inf)
+        for cam in ("left", "right"):
+            q = geometry.project(Q[cam], pts)
+            edge = _edge(grads[cam], q[0], q[None, 1:], cfg.max_angle_deg,
+                         along=(q[-1] - q[0])[None])[0]
+            # an edge like the side's own: in dim light the threshold alone passes desk grain
+            hit = edge >= max(min_strength[cam], cfg.gap_edge_ratio * np.median(edge))
+            for end, h in enumerate((hit[:half], hit[::-1][:half])):
+                # where edges come back: most of 5 mm carry them
+                dense = np.convolve(h.astype(float), np.ones(w) / w, mode="valid") >= 0.6
+                run = float(t[1 + int(np.argmax(dense))]) if dense.any() else float(t[half])
+                found[end] = min(found[end], run)  # missing in both images
+        runs[k] = found
+    return runs
+
+
+def _shrink_side(P: NDArray[np.float64], s: int, runs: NDArray[np.float64],
+                 Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
+                 min_strength: dict[str, float], cfg: ExtentConfig) -> float:
     """How far side ``s`` must move inward (metres, negative; 0: it stays).
 
     A side placed beyond the cover's end (on a line of the desk or of a neighbouring book)
-    leaves its neighbouring sides without edges next to it, in both images. If one does
-    over ``cfg.min_gap`` or more, the side is looked for where that run of missing edges
-    ends (−5 to +15 mm around it): the strongest offset at which the moved side is an
-    edge in both images."""
+    leaves its neighbouring sides without edges next to it, in both images
+    (:func:`_missing_runs`). If one does over ``cfg.min_gap`` or more, the side is looked
+    for where that run of missing edges ends (−5 to +15 mm around it): the strongest
+    offset at which the moved side is an edge in both images."""
     a, b = s, (s + 1) % 4
-    gaps = []
-    for corner, towards in ((a, (a - 1) % 4), (b, (b + 1) % 4)):
-        length = float(np.linalg.norm(P[towards] - P[corner]))
-        t = np.arange(0.0, length, cfg.step)
-        pts = P[corner] + np.outer(t / length, P[towards] - P[corner])  # from the corner on
-        half = len(t) // 2
-        runs = []
-        for cam in ("left", "right"):
-            q = geometry.project(Q[cam], pts)
-            edge = _edge(grads[cam], q[0], q[1:], cfg.max_angle_deg)
-            # an edge as the side's own: in dim light the threshold alone passes desk grain
-            hit = edge[:half] >= max(min_strength[cam], cfg.gap_edge_ratio * np.median(edge))
-            # the first place where edges come back (most of 5 mm carry them)
-            w = max(1, int(round(0.005 / cfg.step)))
-            dense = np.convolve(hit.astype(float), np.ones(w) / w, mode="valid") >= 0.6
-            runs.append(float(t[1 + int(np.argmax(dense))]) if dense.any() else float(t[half]))
-        gaps.append(min(runs))  # missing in both images
-    gap = max(gaps)
+    gap = max(runs[(s - 1) % 4, 1], runs[(s + 1) % 4, 0])  # next to corner a, corner b
     if gap < cfg.min_gap:
         return 0.0
     d = -np.arange(gap - 0.005, gap + 0.015, cfg.step)
