@@ -197,25 +197,31 @@ class Detector:
                             + " and ".join(c for c in ("left", "right") if len(segs[c]) == 0)
                             + " image")
 
-        # 4. stereo correspondence
+        # 4. stereo correspondence, 5. triangulation and pose
         matches = match_quads(segs["left"].corners, segs["right"].corners, rig.Q_L, rig.Q_R,
                               desk_plane=desk_plane, gray_left=ideal["left"],
                               gray_right=ideal["right"], cfg=self.cfg.stereo)
         pairs = [Pair(segs["left"].corners[mt.left], mt.corners_right,
                       float(min(segs["left"].support[mt.left], segs["right"].support[mt.right])),
                       mt.error_px) for mt in matches]
-        if self.cfg.stereo.transfer and desk_plane is not None:
-            pairs += self._transfer(rig, segs, grads, ideal, matches, desk_plane)
         lap("stereo")
-
-        # 5. triangulation and pose
         books = [(pair, self._reconstruct(rig, pair, desk_plane)) for pair in pairs]
+        lap("pose")
+        if self.cfg.stereo.transfer and desk_plane is not None:
+            # A matched pair that is no flat cover often pairs a cover in one image with its
+            # outline in the other: both quads are free again, for each to be looked for in
+            # the other image on its own.
+            kept = [mt for mt, (_, book) in zip(matches, books) if book is not None]
+            more = self._transfer(rig, segs, grads, ideal, kept, desk_plane)
+            lap("stereo")
+            pairs += more
+            books += [(pair, self._reconstruct(rig, pair, desk_plane)) for pair in more]
+            lap("pose")
         found = [(pair, book) for pair, book in books if book is not None]
         dropped = len(pairs) - len(found)
         if dropped:
             warnings.append(f"{dropped} stereo pair(s) of quads dropped: not flat on the desk "
                             "(tilt or height out of range)")
-        lap("pose")
         # beyond the paper: each cover's sides moved to its edges, seen in both images
         if (self.cfg.extent.grow or self.cfg.extent.shrink) and desk_plane is not None:
             found = self._fit_extents(rig, segs, grads, found, desk_plane)
