@@ -17,8 +17,12 @@ where no edge follows them. A side whose neighbours carry no edge next to it, ov
 ``min_gap`` or more in both images (:func:`_shrink_side`), is moved inward to where their
 edges start.
 
-A side grows only where both its neighbours are the cover's own edges: a quad cut short on
-two adjacent sides (a printed block in a corner) stays as it is.
+A side facing the camera must not end on its page block (the block's lines pass every test
+of a cover edge, and such a side often runs along the epipolar lines, where stereo cannot
+place it): it grows only beyond the block's foot in the image. A side grows only where both
+its neighbours are the cover's own edges: a quad cut short on two adjacent sides (a printed
+block in a corner) stays as it is. The search starts from the DLT corners (eq. 5), whatever
+the pipeline's triangulation option.
 """
 
 from __future__ import annotations
@@ -41,7 +45,8 @@ class ExtentConfig:
     step: float = 0.001
     min_grow: float = 0.008  # a smaller move finds the same side again
     min_gap: float = 0.015  # a side's neighbours without edges this far: it is beyond the cover
-    max_side: float = 0.36  # no book is larger
+    max_side: float = 0.45  # no book is larger (as DetectConfig.max_cover_side)
+    reach: float = 0.01  # the neighbours' edges must reach the moved side: half of this
     min_support: float = 0.7  # of the samples, in both images: moved side and its neighbours
     max_angle_deg: float = 25.0  # gradient this close to across the line counts
     gap_edge_ratio: float = 0.35  # of a side's median edge strength: where its edge is missing
@@ -162,7 +167,13 @@ def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]]
             ext = geometry.project(Q[cam], moved[:, k])  # (D, 2)
             start = geometry.project(Q[cam], old[None])[0]
             hit = _hits(grads[cam], start, ext, thr, cfg.max_angle_deg)
-            ok &= np.cumsum(hit) / np.arange(1, len(d) + 1) >= cfg.min_support
+            n_hit = np.concatenate([[0], np.cumsum(hit)])
+            ok &= n_hit[1:] / np.arange(1, len(d) + 1) >= cfg.min_support
+            # ...and reach the moved side itself: no overshoot onto a line further out
+            w = min(len(d), max(1, int(round(cfg.reach / cfg.step))))
+            near = (n_hit[1:] - n_hit[np.maximum(np.arange(1, len(d) + 1) - w, 0)]) / np.minimum(
+                np.arange(1, len(d) + 1), w)
+            ok &= near >= 0.5
     ok &= d >= cfg.min_grow
     if not ok.any():  # (the common case: a cover's own side, its neighbours end there)
         return 0.0
@@ -180,7 +191,7 @@ def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]]
     while first > 0 and ok[first - 1]:
         first -= 1
     k = first + int(np.argmax(strength[first:last + 1]))
-    if 0 < k < len(d) - 1:  # parabola through the neighbours: sub-step offset
+    if first < k < last:  # parabola through scored neighbours: sub-step offset
         s0, s1, s2 = strength[k - 1:k + 2]
         denom = s0 - 2 * s1 + s2
         if denom < 0:
@@ -197,20 +208,23 @@ def _missing_runs(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     w = max(1, int(round(0.005 / cfg.step)))
     for k in range(4):
         length = float(np.linalg.norm(P[(k + 1) % 4] - P[k]))
-        t = np.arange(0.0, length + 1e-9, cfg.step)
+        n = int(round(length / cfg.step)) + 1
+        if n < 2 * w + 2:
+            continue  # too short to hold a gap
+        t = np.linspace(0.0, length, n)  # symmetric: the same distances from either end
         pts = P[k] + np.outer(t / length, P[(k + 1) % 4] - P[k])
-        half = len(t) // 2
+        half = n // 2
         found = np.full(2, np.inf)
         for cam in ("left", "right"):
             q = geometry.project(Q[cam], pts)
-            edge = _edge(grads[cam], q[0], q[None, 1:], cfg.max_angle_deg,
+            edge = _edge(grads[cam], q[0], q[None], cfg.max_angle_deg,
                          along=(q[-1] - q[0])[None])[0]
             # an edge like the side's own: in dim light the threshold alone passes desk grain
             hit = edge >= max(min_strength[cam], cfg.gap_edge_ratio * np.median(edge))
             for end, h in enumerate((hit[:half], hit[::-1][:half])):
                 # where edges come back: most of 5 mm carry them
                 dense = np.convolve(h.astype(float), np.ones(w) / w, mode="valid") >= 0.6
-                run = float(t[1 + int(np.argmax(dense))]) if dense.any() else float(t[half])
+                run = float(t[int(np.argmax(dense))]) if dense.any() else float(t[half])
                 found[end] = min(found[end], run)  # missing in both images
         runs[k] = found
     return runs
@@ -270,15 +284,18 @@ def _across(grad: Gradients, pts: NDArray[np.float64], along: NDArray[np.float64
 
 def _hits(grad: Gradients, start: NDArray[np.float64], pts: NDArray[np.float64], thr: float,
           max_angle_deg: float, along: NDArray[np.float64] | None = None) -> NDArray[np.bool_]:
-    """Whether each point (..., 2) of a line through ``start`` (direction ``along``, or
-    towards the point) lies on an edge: :func:`_edge` at least ``thr``."""
+    """Whether points lie on an edge: :func:`_edge` at least ``thr``."""
     return _edge(grad, start, pts, max_angle_deg, along) >= thr
 
 
 def _edge(grad: Gradients, start: NDArray[np.float64], pts: NDArray[np.float64],
           max_angle_deg: float, along: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
-    """Gradient across the line at each point (..., 2), best of the point and ±1 px across;
-    0 where the gradient is more than ``max_angle_deg`` off the line's normal."""
+    """Gradient across a line at each point, best of the point and ±1 px across; 0 where the
+    gradient is more than ``max_angle_deg`` off the line's normal.
+
+    Either points ``pts`` (N, 2) on one line through ``start`` (2,), or, with ``along``
+    (D, 2), points (D, S, 2) on D lines of those directions (``start`` then unused).
+    """
     direction = pts - start if along is None else np.broadcast_to(
         np.asarray(along)[:, None, :], pts.shape)
     direction = direction / np.maximum(np.linalg.norm(direction, axis=-1, keepdims=True), 1e-9)

@@ -218,10 +218,13 @@ class Detector:
             books += [(pair, self._reconstruct(rig, pair, desk_plane)) for pair in more]
             lap("pose")
         found = [(pair, book) for pair, book in books if book is not None]
-        dropped = len(pairs) - len(found)
+        # a failed pair whose quad became a book through the one-image search is not lost
+        dropped = sum(book is None and not any(
+            quad_overlap(pair.left, p.left) > self.cfg.stereo.transfer_max_overlap
+            for p, _ in found) for pair, book in books)
         if dropped:
-            warnings.append(f"{dropped} stereo pair(s) of quads dropped: not flat on the desk "
-                            "(tilt or height out of range)")
+            warnings.append(f"{dropped} stereo pair(s) of quads dropped: no flat, book-sized "
+                            "cover on the desk")
         # beyond the paper: each cover's sides moved to its edges, seen in both images
         if (self.cfg.extent.grow or self.cfg.extent.shrink) and desk_plane is not None:
             found = self._fit_extents(rig, segs, grads, found, desk_plane)
@@ -318,30 +321,34 @@ class Detector:
                      grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
                      desk_plane: NDArray[np.float64]) -> list[tuple[Pair, BookDetection]]:
         """Books whose cover stops at a printed line or reaches beyond its end, with their
-        sides moved to the cover's edges (:mod:`rovis.extent`) if the new cover still lies
-        flat on the desk; a grown cover then overlapping another book (its other part)
-        replaces it."""
+        sides moved to the cover's edges (:mod:`rovis.extent`; the moved cover must pass the
+        pose checks again, e.g. its size). A book overlapping a moved cover (its other part)
+        gives way to it. The moved cover keeps its pair's ``quality`` and ``error_px``."""
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         strength = {cam: CANNY_LOW_RATIO * (segs[cam].T_H or self.cfg.segment.open_T_H)
                     for cam in Q}
-        out = []
+        out, moved = [], []
         for pair, book in found:
             new = fit_pair_extent({"left": pair.left, "right": pair.right}, Q, grads, strength,
                                   desk_plane, self.cfg.extent)
             if new is not None:
-                moved = replace(pair, left=new["left"], right=new["right"])
-                fitted = self._reconstruct(rig, moved, desk_plane)
+                shift = int(np.argmin(new["left"].sum(axis=1)))  # eq. 1 order in the left image
+                bigger = replace(pair, left=np.roll(new["left"], -shift, axis=0),
+                                 right=np.roll(new["right"], -shift, axis=0))
+                fitted = self._reconstruct(rig, bigger, desk_plane)
                 if fitted is not None:
-                    pair, book = moved, fitted
+                    pair, book = bigger, fitted
+                    moved.append(len(out))
             out.append((pair, book))
-        # largest first: a part of a grown cover overlapping it gives way
-        area = [cv2.contourArea(pair.left.astype(np.float32)) for pair, _ in out]
-        kept: list[int] = []
-        for i in np.argsort(area)[::-1]:
-            if not any(quad_overlap(out[i][0].left, out[k][0].left)
-                       > self.cfg.stereo.transfer_max_overlap for k in kept):
-                kept.append(int(i))
-        return [out[i] for i in sorted(kept)]
+        drop = set()
+        for i in sorted(moved, key=lambda k: -cv2.contourArea(out[k][0].left.astype(np.float32))):
+            if i in drop:
+                continue
+            for k in range(len(out)):
+                if k != i and k not in drop and quad_overlap(
+                        out[i][0].left, out[k][0].left) > self.cfg.stereo.transfer_max_overlap:
+                    drop.add(k)
+        return [item for k, item in enumerate(out) if k not in drop]
 
     def _reconstruct(self, rig: StereoRig, pair: Pair,
                      desk_plane: NDArray[np.float64] | None) -> BookDetection | None:
