@@ -115,3 +115,56 @@ def test_a_cover_longer_than_any_book_is_dropped(lone_book, length, kept):
     assert (book is not None) == kept
     if kept:
         assert max(book.pose.size[:2]) == pytest.approx(length, abs=1e-3)
+
+
+@pytest.fixture(scope="module")
+def book_with_neighbour():
+    """The lone book with a thicker, shorter one flush against its side 2 (P3–P4)."""
+    sc = sample_scene(3, lux=500.0, n_books=0)
+    a = Book(center=(0.45, 0.33, THICKNESS), yaw_deg=20.0, size=(0.22, 0.15, THICKNESS),
+             cover=CoverSpec(kind="plain", albedo=0.08, seed=1))
+    P = a.corners
+    mid = 0.5 * (P[2] + P[3])
+    normal = (mid - np.array(a.center))[:2]
+    reach = float(np.linalg.norm(normal))
+    normal /= reach
+    along_x = abs(normal @ a.R[:2, 0]) > 0.5  # side 2 faces along the book's length?
+    size = (0.08, 0.6 * a.size[1], 0.04) if along_x else (0.6 * a.size[0], 0.08, 0.04)
+    depth = size[0] if along_x else size[1]
+    xy = np.array(a.center[:2]) + normal * (reach + 0.5 * depth + 0.001)
+    b = Book(center=(float(xy[0]), float(xy[1]), size[2]), yaw_deg=20.0, size=size,
+             cover=CoverSpec(kind="light", albedo=0.75, seed=2))
+    sc = replace(sc, books=(a, b), papers=(), mugs=(), pens=(), cables=())
+    r = render(sc, 3)
+    rig = sc.rig
+    grads = {}
+    for cam, raw in (("left", r.left), ("right", r.right)):
+        K, D = rig.intrinsics(cam)
+        maps = cv2.initUndistortRectifyMap(K, D, None, K, rig.image_size, cv2.CV_16SC2)
+        grads[cam] = gradients(cv2.remap(raw, *maps, cv2.INTER_LINEAR))
+    Q = {"left": rig.Q_L, "right": rig.Q_R}
+    return np.array(r.truth["books"][0]["corners"]), Q, grads, np.asarray(r.truth["desk_plane"])
+
+
+def test_growth_stops_at_the_cover_edge_next_to_another_book(book_with_neighbour):
+    P, Q, grads, desk = book_with_neighbour
+    got = _fit(_side_moved(P, 2, -0.05), Q, grads, desk)
+    assert got is not None
+    # back to the true edge, not onto the neighbour's cover or its far edge
+    assert np.linalg.norm(got - P, axis=1).max() < 0.004
+
+
+def test_detect_reports_the_lone_book_where_it_is(lone_book):
+    P, Q, grads, desk, rig = lone_book
+    sc = sample_scene(3, lux=500.0, n_books=0)
+    book = Book(center=(0.45, 0.33, THICKNESS), yaw_deg=20.0, size=(0.22, 0.15, THICKNESS),
+                cover=CoverSpec(kind="plain", albedo=0.08, seed=1))
+    r = render(replace(sc, books=(book,), papers=(), mugs=(), pens=(), cables=()), 3)
+    result = Detector(rig).detect(r.left, r.right)
+    assert len(result.objects) == 1
+    found = result.objects[0]
+    np.testing.assert_allclose(found.corners_world.mean(axis=0), P.mean(axis=0), atol=0.005)
+    assert sorted(found.pose.size[:2]) == pytest.approx(sorted(book.size[:2]), abs=0.006)
+    # eq. 1 order: P1 is the top-left corner in the left image
+    px = found.corners_left_px
+    assert np.argmin(px.sum(axis=1)) == 0
