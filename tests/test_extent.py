@@ -11,7 +11,7 @@ import pytest
 
 from rovis import geometry
 from rovis.extent import ExtentConfig, fit_pair_extent
-from rovis.pipeline import Detector, Pair
+from rovis.pipeline import DetectConfig, Detector, Pair
 from rovis.segment import SegmentConfig, gradients
 from rovis.segment.edges import CANNY_LOW_RATIO
 from rovis.synth import render, sample_scene
@@ -21,21 +21,28 @@ from rovis.synth.textures import CoverSpec
 THICKNESS = 0.02
 
 
+LONE_BOOK = Book(center=(0.45, 0.33, THICKNESS), yaw_deg=20.0, size=(0.22, 0.15, THICKNESS),
+                 cover=CoverSpec(kind="plain", albedo=0.08, seed=1))
+
+
+def _rendered(books):
+    """A clean desk (no clutter) with ``books`` at 500 lx: the rendering, both ideal images'
+    gradients and the projections."""
+    sc = sample_scene(3, lux=500.0, n_books=0)
+    sc = replace(sc, books=tuple(books), papers=(), mugs=(), pens=(), cables=())
+    r = render(sc, 3)
+    grads = {}
+    for cam, raw in (("left", r.left), ("right", r.right)):
+        K, D = sc.rig.intrinsics(cam)
+        maps = cv2.initUndistortRectifyMap(K, D, None, K, sc.rig.image_size, cv2.CV_16SC2)
+        grads[cam] = gradients(cv2.remap(raw, *maps, cv2.INTER_LINEAR))
+    return r, grads, {"left": sc.rig.Q_L, "right": sc.rig.Q_R}, sc.rig
+
+
 @pytest.fixture(scope="module")
 def lone_book():
     """One plain dark book, 22 × 15 × 2 cm, alone on the desk at 500 lx."""
-    sc = sample_scene(3, lux=500.0, n_books=0)
-    book = Book(center=(0.45, 0.33, THICKNESS), yaw_deg=20.0, size=(0.22, 0.15, THICKNESS),
-                cover=CoverSpec(kind="plain", albedo=0.08, seed=1))
-    sc = replace(sc, books=(book,), papers=(), mugs=(), pens=(), cables=())
-    r = render(sc, 3)
-    rig = sc.rig
-    grads = {}
-    for cam, raw in (("left", r.left), ("right", r.right)):
-        K, D = rig.intrinsics(cam)
-        maps = cv2.initUndistortRectifyMap(K, D, None, K, rig.image_size, cv2.CV_16SC2)
-        grads[cam] = gradients(cv2.remap(raw, *maps, cv2.INTER_LINEAR))
-    Q = {"left": rig.Q_L, "right": rig.Q_R}
+    r, grads, Q, rig = _rendered([LONE_BOOK])
     return np.array(r.truth["books"][0]["corners"]), Q, grads, np.asarray(r.truth["desk_plane"]), rig
 
 
@@ -84,13 +91,13 @@ def test_a_whole_cover_keeps_its_sides(lone_book):
     assert got is None or np.linalg.norm(got - P, axis=1).max() < 0.002
 
 
-def test_switched_off_nothing_moves(lone_book):
-    P, Q, grads, desk, _ = lone_book
-    strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
-    partial = _side_moved(P, 2, -0.06)
-    corners = {cam: geometry.project(Q[cam], partial) for cam in Q}
-    assert fit_pair_extent(corners, Q, grads, {"left": strength, "right": strength}, desk,
-                           ExtentConfig(grow=False, shrink=False)) is None
+def test_switched_off_the_pipeline_skips_it():
+    r, _, _, rig = _rendered([LONE_BOOK])
+    on = Detector(rig).detect(r.left, r.right)
+    off = Detector(rig, DetectConfig(extent=ExtentConfig(grow=False, shrink=False))).detect(
+        r.left, r.right)
+    assert "extent" in on.timing_ms and "extent" not in off.timing_ms
+    assert len(off.objects) == len(on.objects) == 1
 
 
 @pytest.mark.parametrize("low, kept", [(0.003, True), (0.001, False)])
@@ -120,11 +127,8 @@ def test_a_cover_longer_than_any_book_is_dropped(lone_book, length, kept):
 @pytest.fixture(scope="module")
 def book_with_neighbour():
     """The lone book with a thicker, shorter one flush against its side 2 (P3–P4)."""
-    sc = sample_scene(3, lux=500.0, n_books=0)
-    a = Book(center=(0.45, 0.33, THICKNESS), yaw_deg=20.0, size=(0.22, 0.15, THICKNESS),
-             cover=CoverSpec(kind="plain", albedo=0.08, seed=1))
-    P = a.corners
-    mid = 0.5 * (P[2] + P[3])
+    a = LONE_BOOK
+    mid = 0.5 * (a.corners[2] + a.corners[3])
     normal = (mid - np.array(a.center))[:2]
     reach = float(np.linalg.norm(normal))
     normal /= reach
@@ -134,15 +138,7 @@ def book_with_neighbour():
     xy = np.array(a.center[:2]) + normal * (reach + 0.5 * depth + 0.001)
     b = Book(center=(float(xy[0]), float(xy[1]), size[2]), yaw_deg=20.0, size=size,
              cover=CoverSpec(kind="light", albedo=0.75, seed=2))
-    sc = replace(sc, books=(a, b), papers=(), mugs=(), pens=(), cables=())
-    r = render(sc, 3)
-    rig = sc.rig
-    grads = {}
-    for cam, raw in (("left", r.left), ("right", r.right)):
-        K, D = rig.intrinsics(cam)
-        maps = cv2.initUndistortRectifyMap(K, D, None, K, rig.image_size, cv2.CV_16SC2)
-        grads[cam] = gradients(cv2.remap(raw, *maps, cv2.INTER_LINEAR))
-    Q = {"left": rig.Q_L, "right": rig.Q_R}
+    r, grads, Q, _ = _rendered([a, b])
     return np.array(r.truth["books"][0]["corners"]), Q, grads, np.asarray(r.truth["desk_plane"])
 
 
@@ -155,16 +151,13 @@ def test_growth_stops_at_the_cover_edge_next_to_another_book(book_with_neighbour
 
 
 def test_detect_reports_the_lone_book_where_it_is(lone_book):
-    P, Q, grads, desk, rig = lone_book
-    sc = sample_scene(3, lux=500.0, n_books=0)
-    book = Book(center=(0.45, 0.33, THICKNESS), yaw_deg=20.0, size=(0.22, 0.15, THICKNESS),
-                cover=CoverSpec(kind="plain", albedo=0.08, seed=1))
-    r = render(replace(sc, books=(book,), papers=(), mugs=(), pens=(), cables=()), 3)
+    P, _, _, _, rig = lone_book
+    r, _, _, _ = _rendered([LONE_BOOK])
     result = Detector(rig).detect(r.left, r.right)
     assert len(result.objects) == 1
     found = result.objects[0]
     np.testing.assert_allclose(found.corners_world.mean(axis=0), P.mean(axis=0), atol=0.005)
-    assert sorted(found.pose.size[:2]) == pytest.approx(sorted(book.size[:2]), abs=0.006)
+    assert sorted(found.pose.size[:2]) == pytest.approx(sorted(LONE_BOOK.size[:2]), abs=0.006)
     # eq. 1 order: P1 is the top-left corner in the left image
     px = found.corners_left_px
     assert np.argmin(px.sum(axis=1)) == 0
