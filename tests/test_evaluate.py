@@ -205,6 +205,24 @@ def test_not_a_dataset_is_one_line_and_exit_2(dataset, tmp_path, capsys, case):
     assert want in err[0]
 
 
+def test_eval_set_changes_the_detector_and_is_recorded(dataset, serial, tmp_path, capsys):
+    assert serial.summary()["closed"]["found"] > 0  # the defaults find books here
+    out = tmp_path / "set"
+    assert main(["eval", str(dataset), "--methods", "closed", "--set", "max_cover_side=0.01",
+                 "--out", str(out), "--no-plots"]) == 0
+    assert "detector settings changed: max_cover_side=0.01" in capsys.readouterr().out
+    doc = json.loads((out / "results.json").read_text())
+    assert doc["settings"]["detector"] == ["max_cover_side=0.01"]
+    assert doc["summary"]["closed"]["found"] == 0  # no cover is 1 cm long
+    assert ev.Evaluation.from_dict(doc).settings == ("max_cover_side=0.01",)
+
+
+def test_eval_rejects_an_unknown_setting_in_one_line(dataset, capsys):
+    assert main(["eval", str(dataset), "--set", "no_such=1"]) == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert len(err) == 1 and "no_such" in err[0], err
+
+
 def test_eval_rejects_unknown_methods(dataset, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["eval", str(dataset), "--methods", "closed,magic"])

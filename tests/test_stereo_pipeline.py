@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from rovis.pipeline import DetectConfig, Detector, detect
+from rovis.pipeline import DetectConfig, Detector, detect, with_settings
 from rovis.segment import canny
 from rovis.stereo import StereoConfig, find_in_other_view, match_quads
 from rovis.synth import render, sample_scene
@@ -156,3 +156,16 @@ def test_colour_and_16_bit_input_are_converted(scene):
     wide = r.right.astype(np.uint16) * 257
     res = detect(colour, wide, sc.rig, method="open")
     assert res.world_frame == "marker"
+
+
+def test_settings_by_name_reach_nested_fields_and_name_bad_ones():
+    cfg = with_settings(DetectConfig(), ["extent.grow=false", "segment.n_max=150",
+                                         "max_tilt_deg=4", "segment.T_H_range=10,400"])
+    assert cfg.extent.grow is False and cfg.segment.n_max == 150
+    assert cfg.max_tilt_deg == 4.0 and cfg.segment.T_H_range == (10.0, 400.0)
+    assert DetectConfig().extent.grow is True  # the defaults untouched
+    for bad, word in (("nope=1", "nope"), ("extent=1", "group"), ("max_tilt_deg=abc", "float"),
+                      ("extent.grow=maybe", "bool"), ("x", "NAME=VALUE"),
+                      ("method=foo", "method")):
+        with pytest.raises(ValueError, match=word):
+            with_settings(DetectConfig(), [bad])

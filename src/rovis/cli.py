@@ -29,7 +29,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 def _cmd_detect(args: argparse.Namespace) -> int:
     from rovis.calib import load_calibration
-    from rovis.pipeline import DetectConfig, Detector
+    from rovis.pipeline import DetectConfig, Detector, with_settings
     from rovis.sequence import is_sequence_source
 
     sequence = is_sequence_source(args.left) or is_sequence_source(args.right)
@@ -38,8 +38,9 @@ def _cmd_detect(args: argparse.Namespace) -> int:
             if not Path(path).is_file():
                 raise InputError(f"{what}: {path}: image file not found")
     rig = load_calibration(args.calib)
-    detector = Detector(rig, DetectConfig(method=args.method, triangulation=args.triangulation,
-                                          fit_rectangle=args.fit_rectangle))
+    cfg = DetectConfig(method=args.method, triangulation=args.triangulation,
+                       fit_rectangle=args.fit_rectangle)
+    detector = Detector(rig, with_settings(cfg, args.set))
     if sequence:
         return _detect_sequence(args, detector)
     return _detect_pair(args, detector)
@@ -265,14 +266,18 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 
     if args.dask is not None and args.workers != 1:
         raise InputError("--dask and --workers: give one (the cluster has its own workers)")
+    from rovis.pipeline import DetectConfig, with_settings
+
     ds = Path(args.dataset)
     evaluate.list_scenes(ds)  # a folder that is not a dataset: one line, before any work
+    with_settings(DetectConfig(), args.set)  # so is a bad --set
     where = (f"Dask scheduler {args.dask}" if args.dask else
              f"{args.workers} worker process{'es' if args.workers != 1 else ''}"
              if args.workers > 1 else "1 process")
     print(f"rovis eval {ds}: methods {', '.join(args.methods)}; {where}", file=sys.stderr)
     ev = evaluate.evaluate(ds, args.methods, workers=args.workers, dask=args.dask,
-                           limit=args.limit, progress=evaluate.stderr_progress())
+                           limit=args.limit, settings=args.set,
+                           progress=evaluate.stderr_progress())
     for item in ev.skipped:
         print(f"rovis eval: skipped scene {item['scene']}: {item['reason']}", file=sys.stderr)
     total = len(ev.scenes) + len(ev.skipped)
@@ -357,6 +362,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fit-rectangle", action="store_true",
                    help="replace each cover's four triangulated corners by one 3D rectangle "
                         "fitted to both images (beyond the paper)")
+    p.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
+                   help="change a detector setting, e.g. --set extent.grow=false "
+                        "(DetectConfig's fields, nested with dots; repeatable)")
     p.add_argument("--json", metavar="F", help="write the detection JSON here (a sequence: "
                                                "JSON Lines, one frame a line)")
     p.add_argument("--overlay", metavar="DIR", help="write the images with what was found "
@@ -447,6 +455,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true", help="with --out: no plots")
     p.add_argument("--limit", type=_positive_int, default=None,
                    help="only the first N scenes")
+    p.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
+                   help="change a detector setting, e.g. --set extent.grow=false --set "
+                        "max_tilt_deg=4 (DetectConfig's fields, nested with dots; repeatable)")
     p.set_defaults(func=_cmd_eval)
 
     p = sub.add_parser("bench", help="benchmarks on one core: the pipeline per frame and stage "

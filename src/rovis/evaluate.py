@@ -22,7 +22,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -354,27 +354,30 @@ def score_scene(scene_dir: str | os.PathLike[str], detectors: Mapping[str, Any])
 _WORKER = threading.local()  # per thread: a Dask worker may run several task threads
 
 
-def _init_worker(calib: str, methods: tuple[str, ...], one_thread: bool) -> None:
+def _init_worker(calib: str, methods: tuple[str, ...], one_thread: bool,
+                 settings: tuple[str, ...] = ()) -> None:
     """Build one Detector per method, once per worker process (or thread)."""
     from rovis.calib import load_calibration
-    from rovis.pipeline import DetectConfig, Detector
+    from rovis.pipeline import DetectConfig, Detector, with_settings
 
     if one_thread:
         import cv2
 
         cv2.setNumThreads(1)  # the pool already uses the cores
     rig = load_calibration(calib)
-    _WORKER.detectors = {m: Detector(rig, DetectConfig(method=m)) for m in methods}
-    _WORKER.key = (calib, methods)
+    base = with_settings(DetectConfig(), settings)
+    _WORKER.detectors = {m: Detector(rig, replace(base, method=m)) for m in methods}
+    _WORKER.key = (calib, methods, settings)
 
 
 def _score_in_worker(scene_dir: str) -> dict[str, Any]:
     return score_scene(scene_dir, _WORKER.detectors)
 
 
-def _score_on_dask(scene_dir: str, calib: str, methods: tuple[str, ...]) -> dict[str, Any]:
-    if getattr(_WORKER, "key", None) != (calib, methods):
-        _init_worker(calib, methods, one_thread=False)
+def _score_on_dask(scene_dir: str, calib: str, methods: tuple[str, ...],
+                   settings: tuple[str, ...] = ()) -> dict[str, Any]:
+    if getattr(_WORKER, "key", None) != (calib, methods, settings):
+        _init_worker(calib, methods, False, settings)
     return _score_in_worker(scene_dir)
 
 
@@ -393,12 +396,15 @@ class Evaluation:
         One :func:`score_scene` record per scored scene, in scene order.
     skipped : list of dict
         ``{"scene", "reason"}`` per scene that could not be scored.
+    settings : tuple of str
+        Detector settings changed from the defaults (``NAME=VALUE``, as ``--set`` takes).
     """
 
     dataset: str
     methods: tuple[str, ...]
     scenes: list[dict[str, Any]]
     skipped: list[dict[str, str]] = field(default_factory=list)
+    settings: tuple[str, ...] = ()
 
     @property
     def protocol(self) -> str | None:
@@ -415,7 +421,7 @@ class Evaluation:
         return {"schema": SCHEMA, "dataset": self.dataset, "protocol": self.protocol,
                 "methods": list(self.methods),
                 "settings": {"match_radius_m": MATCH_RADIUS_M, "visible_min": VISIBLE_MIN,
-                             "square_tol_m": SQUARE_TOL_M},
+                             "square_tol_m": SQUARE_TOL_M, "detector": list(self.settings)},
                 "n_scenes": len(self.scenes), "n_skipped": len(self.skipped),
                 "summary": self.summary(), "breakdown": breakdown(self.scenes, self.methods),
                 "skipped": list(self.skipped), "scenes": list(self.scenes)}
@@ -424,7 +430,8 @@ class Evaluation:
     def from_dict(cls, doc: Mapping[str, Any]) -> Evaluation:
         """Back from a ``results.json`` document."""
         return cls(dataset=doc["dataset"], methods=tuple(doc["methods"]),
-                   scenes=list(doc["scenes"]), skipped=list(doc.get("skipped", [])))
+                   scenes=list(doc["scenes"]), skipped=list(doc.get("skipped", [])),
+                   settings=tuple(doc.get("settings", {}).get("detector", ())))
 
 
 def list_scenes(dataset: str | os.PathLike[str]) -> list[Path]:
@@ -453,7 +460,7 @@ def list_scenes(dataset: str | os.PathLike[str]) -> list[Path]:
 
 def evaluate(dataset: str | os.PathLike[str], methods: Sequence[str] = METHODS, *,
              workers: int = 1, dask: str | None = None, limit: int | None = None,
-             progress: Progress | None = None) -> Evaluation:
+             settings: Sequence[str] = (), progress: Progress | None = None) -> Evaluation:
     """Score every scene of a dataset with every method.
 
     Parameters
@@ -471,19 +478,25 @@ def evaluate(dataset: str | os.PathLike[str], methods: Sequence[str] = METHODS, 
         the workers. Needs the ``dask`` extra.
     limit : int, optional
         Only the first ``limit`` scenes.
+    settings : sequence of str
+        Detector settings to change, ``NAME=VALUE`` (:func:`rovis.pipeline.with_settings`).
     progress : callable, optional
         ``progress(done, total, skipped)`` after each scene.
 
     Raises
     ------
     ValueError
-        An unknown method, a bad count, or a dataset that is not one (see :func:`list_scenes`).
+        An unknown method, a bad count or setting, or a dataset that is not one (see
+        :func:`list_scenes`).
     ImportError
         ``dask`` given without dask.distributed installed.
     """
     from rovis.calib import load_calibration
+    from rovis.pipeline import DetectConfig, with_settings
 
     methods = tuple(dict.fromkeys(methods))
+    settings = tuple(settings)
+    with_settings(DetectConfig(), settings)  # a bad setting is one error here
     if not methods:
         raise ValueError("methods: expected at least one")
     bad = [m for m in methods if m not in METHODS]
@@ -500,15 +513,15 @@ def evaluate(dataset: str | os.PathLike[str], methods: Sequence[str] = METHODS, 
     paths = [str(p) for p in scenes]
 
     if dask is not None:
-        records = _run_dask(dask, paths, calib, methods, progress)
+        records = _run_dask(dask, paths, calib, methods, settings, progress)
     elif workers == 1:
-        _init_worker(calib, methods, one_thread=False)
+        _init_worker(calib, methods, False, settings)
         records = _collect(map(_score_in_worker, paths), len(paths), progress)
     else:
-        records = _run_pool(workers, paths, calib, methods, progress)
+        records = _run_pool(workers, paths, calib, methods, settings, progress)
     scored = [r for r in records if "skipped" not in r]
     skipped = [{"scene": r["scene"], "reason": r["skipped"]} for r in records if "skipped" in r]
-    return Evaluation(str(dataset), methods, scored, skipped)
+    return Evaluation(str(dataset), methods, scored, skipped, settings)
 
 
 def _collect(results: Iterable[dict[str, Any]], total: int,
@@ -523,20 +536,20 @@ def _collect(results: Iterable[dict[str, Any]], total: int,
 
 
 def _run_pool(workers: int, paths: list[str], calib: str, methods: tuple[str, ...],
-              progress: Progress | None) -> list[dict[str, Any]]:
+              settings: tuple[str, ...], progress: Progress | None) -> list[dict[str, Any]]:
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
     # spawn, not fork: a child forked after OpenCV's thread pool has run can deadlock in it
     with ProcessPoolExecutor(max_workers=min(workers, len(paths)), initializer=_init_worker,
-                             initargs=(calib, methods, True),
+                             initargs=(calib, methods, True, settings),
                              mp_context=multiprocessing.get_context("spawn")) as pool:
         # map keeps the scene order; chunks of one keep the workers evenly busy
         return _collect(pool.map(_score_in_worker, paths, chunksize=1), len(paths), progress)
 
 
 def _run_dask(address: str, paths: list[str], calib: str, methods: tuple[str, ...],
-              progress: Progress | None) -> list[dict[str, Any]]:
+              settings: tuple[str, ...], progress: Progress | None) -> list[dict[str, Any]]:
     try:
         from distributed import Client, as_completed
     except ImportError as exc:
@@ -546,7 +559,8 @@ def _run_dask(address: str, paths: list[str], calib: str, methods: tuple[str, ..
     except OSError as exc:
         raise OSError(f"--dask {address}: cannot reach the scheduler ({exc})") from None
     with client:
-        futures = client.map(_score_on_dask, paths, calib=calib, methods=methods, pure=False)
+        futures = client.map(_score_on_dask, paths, calib=calib, methods=methods,
+                             settings=settings, pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
         records: list[dict[str, Any] | None] = [None] * len(paths)
         done = skipped = 0
@@ -738,6 +752,8 @@ def report(ev: Evaluation) -> str:
     position errors in metres)."""
     summary = ev.summary()
     parts = [method_table(m, summary[m], paper_reference(m, ev.protocol)) for m in ev.methods]
+    if ev.settings:
+        parts.insert(0, "detector settings changed: " + ", ".join(ev.settings))
     parts.append("All methods (mean absolute errors of the matched books):\n"
                  + summary_table(summary))
     bd = breakdown(ev.scenes, ev.methods)

@@ -13,8 +13,8 @@ sequence, the controllers' previous optimum (warm start).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
-from typing import Literal
+from dataclasses import dataclass, field, fields, is_dataclass, replace
+from typing import Any, Literal, Sequence
 
 import cv2
 import numpy as np
@@ -89,6 +89,69 @@ class DetectConfig:
             raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {self.method!r}")
         if self.triangulation not in ("dlt", "optimal"):
             raise ValueError(f"triangulation: expected 'dlt' or 'optimal', got {self.triangulation!r}")
+
+
+def with_settings(cfg: DetectConfig, settings: Sequence[str]) -> DetectConfig:
+    """``cfg`` with fields replaced from ``"name=value"`` strings (the CLI's ``--set``).
+
+    A name may reach into the nested settings with dots (``extent.grow=false``,
+    ``segment.n_max=150``, ``stereo.min_ncc=0.3``, ``segment.quads.min_support=0.6``). The
+    value is read as the field's current type: true/false, an integer, a number, text, or
+    comma-separated numbers for a pair.
+
+    Raises
+    ------
+    ValueError
+        An unknown name or a value of the wrong type, naming both.
+    """
+    for item in settings:
+        name, sep, text = item.partition("=")
+        name = name.strip()
+        if not sep or not name:
+            raise ValueError(f"--set {item!r}: expected NAME=VALUE")
+        cfg = _set(cfg, name.split("."), text.strip(), name)
+    return cfg
+
+
+def _set(obj: Any, path: list[str], text: str, name: str) -> Any:
+    names = [f.name for f in fields(obj)]
+    if path[0] not in names:
+        raise ValueError(f"--set {name}: no setting {path[0]!r} here (expected one of "
+                         f"{', '.join(names)})")
+    current = getattr(obj, path[0])
+    if len(path) > 1:
+        if not is_dataclass(current):
+            raise ValueError(f"--set {name}: {path[0]!r} has no settings inside it")
+        return replace(obj, **{path[0]: _set(current, path[1:], text, name)})
+    if is_dataclass(current):
+        raise ValueError(f"--set {name}: a group of settings; name one inside it "
+                         f"({', '.join(f.name for f in fields(current))})")
+    try:
+        value = _parse_like(current, text)
+    except ValueError:
+        raise ValueError(f"--set {name}={text}: expected {type(current).__name__} like "
+                         f"{current!r}") from None
+    return replace(obj, **{path[0]: value})  # runs the config's own checks
+
+
+def _parse_like(current: Any, text: str) -> Any:
+    if isinstance(current, bool):
+        low = text.lower()
+        if low in ("true", "yes", "on", "1"):
+            return True
+        if low in ("false", "no", "off", "0"):
+            return False
+        raise ValueError(text)
+    if isinstance(current, int):
+        return int(text)
+    if isinstance(current, float):
+        return float(text)
+    if isinstance(current, tuple):
+        parts = [p for p in text.split(",") if p.strip()]
+        if len(parts) != len(current):
+            raise ValueError(text)
+        return tuple(_parse_like(c, p.strip()) for c, p in zip(current, parts))
+    return text
 
 
 @dataclass(frozen=True, eq=False)
