@@ -167,13 +167,12 @@ def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]]
             ext = geometry.project(Q[cam], moved[:, k])  # (D, 2)
             start = geometry.project(Q[cam], old[None])[0]
             hit = _hits(grads[cam], start, ext, thr, cfg.max_angle_deg)
+            n = np.arange(1, len(d) + 1)  # steps out to each offset
             n_hit = np.concatenate([[0], np.cumsum(hit)])
-            ok &= n_hit[1:] / np.arange(1, len(d) + 1) >= cfg.min_support
+            ok &= n_hit[1:] / n >= cfg.min_support
             # ...and reach the moved side itself: no overshoot onto a line further out
             w = min(len(d), max(1, int(round(cfg.reach / cfg.step))))
-            near = (n_hit[1:] - n_hit[np.maximum(np.arange(1, len(d) + 1) - w, 0)]) / np.minimum(
-                np.arange(1, len(d) + 1), w)
-            ok &= near >= 0.5
+            ok &= (n_hit[1:] - n_hit[np.maximum(n - w, 0)]) / np.minimum(n, w) >= 0.5
     ok &= d >= cfg.min_grow
     if not ok.any():  # (the common case: a cover's own side, its neighbours end there)
         return 0.0
