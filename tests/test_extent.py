@@ -9,13 +9,13 @@ import cv2
 import numpy as np
 import pytest
 
-from rovis import geometry
+from rovis import extent, geometry
 from rovis.extent import ExtentConfig, fit_pair_extent
 from rovis.pipeline import DetectConfig, Detector, Pair
 from rovis.segment import SegmentConfig, gradients
 from rovis.segment.edges import CANNY_LOW_RATIO
 from rovis.synth import render, sample_scene
-from rovis.synth.scene import Book
+from rovis.synth.scene import Book, Light
 from rovis.synth.textures import CoverSpec
 
 THICKNESS = 0.02
@@ -25,11 +25,13 @@ LONE_BOOK = Book(center=(0.45, 0.33, THICKNESS), yaw_deg=20.0, size=(0.22, 0.15,
                  cover=CoverSpec(kind="plain", albedo=0.08, seed=1))
 
 
-def _rendered(books):
-    """A clean desk (no clutter) with ``books`` at 500 lx: the rendering, both ideal images'
-    gradients and the projections."""
+def _rendered(books, light=None):
+    """A clean desk (no clutter) with ``books`` at 500 lx (or under ``light``): the
+    rendering, both ideal images' gradients and the projections."""
     sc = sample_scene(3, lux=500.0, n_books=0)
     sc = replace(sc, books=tuple(books), papers=(), mugs=(), pens=(), cables=())
+    if light is not None:
+        sc = replace(sc, light=light)
     r = render(sc, 3)
     grads = {}
     for cam, raw in (("left", r.left), ("right", r.right)):
@@ -161,3 +163,58 @@ def test_detect_reports_the_lone_book_where_it_is(lone_book):
     # eq. 1 order: P1 is the top-left corner in the left image
     px = found.corners_left_px
     assert np.argmin(px.sum(axis=1)) == 0
+
+
+def _shadow_scene(elevation_deg, azimuth_deg, thickness):
+    """A thin light book alone on the desk under a low sun: its cast shadow lies beyond one
+    end, its sides running on along the book's long sides."""
+    sun = (np.cos(np.radians(elevation_deg)) * np.cos(np.radians(azimuth_deg)),
+           np.cos(np.radians(elevation_deg)) * np.sin(np.radians(azimuth_deg)),
+           np.sin(np.radians(elevation_deg)))
+    light = Light(kind="daylight", lux=300.0, direction=sun, ambient=0.2, mullions=0,
+                  penumbra_px=1.5)
+    book = replace(LONE_BOOK, center=(0.45, 0.33, thickness), size=(0.22, 0.15, thickness),
+                   cover=CoverSpec(kind="plain", albedo=0.7, seed=1))
+    r, grads, Q, _ = _rendered([book], light=light)
+    return np.array(r.truth["books"][0]["corners"]), Q, grads, np.asarray(r.truth["desk_plane"])
+
+
+# sun behind either end of the book (its yaw is 20°): the shadow beyond side 2, or side 0
+@pytest.mark.parametrize("azimuth, side", [(20.0, 2), (200.0, 0)])
+def test_a_cover_does_not_grow_over_its_shadow(azimuth, side):
+    P, Q, grads, desk = _shadow_scene(12.0, azimuth, 0.006)
+    up = desk[:3]
+    # stereo places the cover's own end at its height, the shadow's far edge on the desk
+    # (the book is 6 mm thick: about half a pixel of disparity)
+    assert extent._edge_level(P, side, Q, grads, up, -0.006 * up, ExtentConfig()) == \
+        pytest.approx(0.006, abs=0.003)
+    # without the height test the cover grows over the shadow (the case is real) ...
+    strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
+    corners = {cam: geometry.project(Q[cam], P) for cam in Q}
+    blind = fit_pair_extent(corners, Q, grads, {"left": strength, "right": strength}, desk,
+                            ExtentConfig(height_check=False))
+    assert blind is not None
+    grown = geometry.triangulate(Q["left"], Q["right"], blind["left"], blind["right"])
+    assert np.linalg.norm(grown - P, axis=1).max() > 0.015
+    shadow_side = _side_moved(P, side, float(np.linalg.norm(grown - P, axis=1).max()))
+    assert extent._edge_level(shadow_side, side, Q, grads, up, -0.006 * up,
+                              ExtentConfig()) == pytest.approx(0.0, abs=0.003)
+    # ... with it, the cover keeps its sides
+    got = _fit(P, Q, grads, desk)
+    assert got is None or np.linalg.norm(got - P, axis=1).max() < 0.003
+
+
+def test_stereo_places_a_cover_side_at_the_cover_height(lone_book):
+    # the lone book is 2 cm thick: a side whose page block is hidden, where stereo can
+    # place it, is measured at the cover's height, so a shrink may not move it (it is the
+    # cover's edge, or a print on it)
+    P, Q, grads, desk, _ = lone_book
+    up, drop = desk[:3], -THICKNESS * desk[:3]
+    measured = 0
+    for s in range(4):
+        level = extent._edge_level(P, s, Q, grads, up, drop, ExtentConfig())
+        if level is not None and not extent._block_shows(P, s, Q, drop):
+            measured += 1
+            assert level == pytest.approx(THICKNESS, abs=0.005)
+            assert extent._at_cover_height(P, s, Q, grads, up, drop, ExtentConfig())
+    assert measured >= 1

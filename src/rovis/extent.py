@@ -23,6 +23,15 @@ place it): it grows only beyond the block's foot in the image. A side grows only
 its neighbours are the cover's own edges: a quad cut short on two adjacent sides (a printed
 block in a corner) stays as it is. The search starts from the DLT corners (eq. 5), whatever
 the pipeline's triangulation option.
+
+Two lines look like a cover's edge in each image and are told apart by their height, by
+stereo (:func:`_edge_height`: the side fit in each image on its own, the two fits
+intersected): a thin book's cast shadow beyond its end continues its sides and ends in an
+edge, but on the desk, so a side does not grow onto an edge stereo puts nearer the desk
+than the cover (on a side whose page block is hidden: where the block shows, its foot is
+such an edge). And a side that stereo puts at the cover's height is the cover's edge or a
+print on it, not the desk a quad over-reached onto, so it is not pulled in. Where stereo
+cannot tell (a side along the epipolar lines, a fit that fails), the moves stand.
 """
 
 from __future__ import annotations
@@ -34,6 +43,7 @@ from numpy.typing import NDArray
 
 from rovis import geometry
 from rovis.segment.edges import Gradients
+from rovis.segment.lines import refine_segment
 
 
 @dataclass(frozen=True)
@@ -50,6 +60,8 @@ class ExtentConfig:
     min_support: float = 0.7  # of the samples, in both images: moved side and its neighbours
     max_angle_deg: float = 25.0  # gradient this close to across the line counts
     gap_edge_ratio: float = 0.35  # of a side's median edge strength: where its edge is missing
+    height_check: bool = True  # stereo height of a moved side's edge: see _on_desk, _at_cover_height
+    height_sigma: float = 0.5  # ...asked where stereo places the edge this well, of the cover's height
 
 
 def fit_extent(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
@@ -88,6 +100,8 @@ def fit_extent(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     runs = _missing_runs(P, Q, grads, min_strength, cfg) if cfg.shrink else None
     for s in range(4 if cfg.shrink else 0):
         d = _shrink_side(P, s, runs, Q, grads, min_strength, cfg)
+        if d < 0 and cfg.height_check and _at_cover_height(P, s, Q, grads, up, drop, cfg):
+            d = 0.0  # the side is on a line at the cover's height: the cover's edge or a print
         if d < 0:
             P = _moved(P, s, np.array([d]))[0]
             runs = _missing_runs(P, Q, grads, min_strength, cfg)
@@ -96,6 +110,9 @@ def fit_extent(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
         changed = False
         for s in range(4):
             d = _grow_side(P, s, Q, grads, min_strength, drop, cfg)
+            if d > 0 and cfg.height_check and _on_desk(_moved(P, s, np.array([d]))[0], s, Q,
+                                                       grads, up, drop, cfg):
+                d = 0.0  # a shadow's edge or a line on the desk: the cover ends where it was
             if d > 0:
                 P = _moved(P, s, np.array([d]))[0]
                 changed = moved = True
@@ -307,6 +324,92 @@ def _edge(grad: Gradients, start: NDArray[np.float64], pts: NDArray[np.float64],
         across = np.abs(gx * n[..., 0] + gy * n[..., 1])
         best = np.maximum(best, np.where(across >= cos_max * np.hypot(gx, gy), across, 0.0))
     return best
+
+
+def _on_desk(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
+             grads: dict[str, Gradients], up: NDArray[np.float64], drop: NDArray[np.float64],
+             cfg: ExtentConfig) -> bool:
+    """Whether the edge that side ``s`` of the grown cover ``P`` (4, 3) now lies on is, by
+    stereo, nearer the desk than the cover's height: a cast shadow's edge or a line on the
+    desk. Asked only of a side whose page block is hidden: where the block shows, its foot
+    is a desk-level line next to the cover's own edge."""
+    if _block_shows(P, s, Q, drop):
+        return False
+    level = _edge_level(P, s, Q, grads, up, drop, cfg)
+    return level is not None and level < 0.5 * float(np.linalg.norm(drop))
+
+
+def _block_shows(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
+                 drop: NDArray[np.float64], min_px: float = 1.0) -> bool:
+    """Whether the page block below side ``s`` of cover ``P`` (4, 3) shows in either image:
+    its foot (the side moved by ``drop``, onto the desk) lies at least ``min_px`` outside
+    the cover."""
+    a, b = P[s], P[(s + 1) % 4]
+    mid = 0.5 * (a + b)
+    for cam in ("left", "right"):
+        q = geometry.project(Q[cam], np.array([a, b, mid, mid + drop]))
+        n_out = np.array([q[1, 1] - q[0, 1], q[0, 0] - q[1, 0]])
+        n_out /= max(float(np.linalg.norm(n_out)), 1e-9)
+        if n_out @ (q[2] - geometry.project(Q[cam], P).mean(axis=0)) < 0:
+            n_out = -n_out
+        if (q[3] - q[2]) @ n_out >= min_px:
+            return True
+    return False
+
+
+def _at_cover_height(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
+                     grads: dict[str, Gradients], up: NDArray[np.float64],
+                     drop: NDArray[np.float64], cfg: ExtentConfig) -> bool:
+    """Whether the edge side ``s`` of cover ``P`` (4, 3) lies on is, by stereo, nearer the
+    cover's height than the desk."""
+    level = _edge_level(P, s, Q, grads, up, drop, cfg)
+    return level is not None and level >= 0.5 * float(np.linalg.norm(drop))
+
+
+def _edge_level(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
+                grads: dict[str, Gradients], up: NDArray[np.float64], drop: NDArray[np.float64],
+                cfg: ExtentConfig) -> float | None:
+    """Height above the desk (metres) of the edge next to side ``s`` of cover ``P`` (4, 3),
+    or None where stereo cannot tell it to within ``height_sigma`` of the cover's height."""
+    h = float(np.linalg.norm(drop))
+    z, sigma = _edge_height(P, s, Q, grads, up)
+    return h + z if sigma < cfg.height_sigma * h else None
+
+
+def _edge_height(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
+                 grads: dict[str, Gradients], up: NDArray[np.float64],
+                 px_sigma: float = 0.1) -> tuple[float, float]:
+    """Height (metres, relative to the cover plane) of the edge next to side ``s`` of cover
+    ``P`` (4, 3), with its standard deviation for a ``px_sigma`` error of each image's fit
+    (inf where a fit fails).
+
+    The side is fit in each image on its own (:func:`refine_segment`); the edge is the 3D
+    line on both back-projected planes, found as the offset across the side (in the cover
+    plane) and the height that put the side on both fitted lines: two linear equations,
+    in pixels. Disparity moves a side only across it, so a side along the epipolar lines
+    (horizontal in the image) has no height: its sigma is large.
+    """
+    a, b = P[s], P[(s + 1) % 4]
+    m = 0.5 * (a + b)
+    n = np.cross(up, _unit(b - a))
+    rows, rhs = [], []
+    for cam in ("left", "right"):
+        pa, pb = geometry.project(Q[cam], np.array([a, b]))
+        fit = refine_segment(grads[cam], pa, pb, half_width=5.0)
+        if fit is None:
+            return 0.0, np.inf
+        p, d = fit
+        line = np.array([-d[1], d[0], d[1] * p[0] - d[0] * p[1]])  # unit normal: pixels
+        q = line @ Q[cam]
+        w = float(Q[cam][2, :3] @ m + Q[cam][2, 3])
+        rows.append([q[:3] @ n / w, q[:3] @ up / w])  # px per metre of (offset, height)
+        rhs.append(-(q[:3] @ m + q[3]) / w)
+    A = np.array(rows)
+    if abs(np.linalg.det(A)) < 1e-12:
+        return 0.0, np.inf
+    inv = np.linalg.inv(A)
+    z_rel = float((inv @ np.array(rhs))[1])
+    return z_rel, float(px_sigma * np.linalg.norm(inv[1]))
 
 
 def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
