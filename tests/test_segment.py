@@ -178,3 +178,39 @@ def test_duplicate_candidates_merge_into_the_strongest_within_reach():
     np.testing.assert_array_equal(kept.corners, corners[order[groups]])
     np.testing.assert_array_equal(votes, want_votes)
     assert 40 <= len(kept) < n
+
+
+def _evaluation(T_H, y, corners):
+    from rovis.segment.boundary import Evaluation
+    from rovis.segment.lines import Lines
+    from rovis.segment.quads import Quads
+    c = np.array(corners, dtype=np.float64).reshape(-1, 4, 2)
+    k = len(c)
+    return Evaluation(T_H, 30, y, Lines.empty(),
+                      Quads(np.zeros((k, 4), np.intp), c, np.ones((k, 4)), np.full(k, 100.0),
+                            np.full(k, 40, np.int64)), 1)
+
+
+def test_covers_found_at_other_thresholds_join_where_the_optimum_found_none():
+    from rovis.segment.control import with_other_covers
+    square = lambda x, y, s=100: [(x, y), (x + s, y), (x + s, y + s), (x, y + s)]  # noqa: E731
+    best = _evaluation(100.0, 0.02, [square(0, 0)])
+    low = _evaluation(50.0, 0.01, [square(5, 5),      # the optimum's book again: not added
+                                   square(300, 0),    # a book the higher T_H has: not added
+                                   square(0, 300)])   # another book: added
+    high = _evaluation(200.0, 0.015, [square(290, 10)])  # a book: added, before low's
+    got = with_other_covers(best, [best, low, high], max_overlap=0.15)
+    # taken by decreasing y: the higher T_H's cover before the lower's overlapping one
+    assert len(got.covers) == 3
+    for quad, want in zip(got.covers.corners, (square(0, 0), square(290, 10), square(0, 300))):
+        np.testing.assert_allclose(quad, want)
+    assert (got.T_H, got.y) == (best.T_H, best.y)  # the optimum's thresholds and y stay
+
+
+def test_the_union_can_be_switched_off():
+    img, _ = drawn_scene()
+    grad = gradients(img)
+    on = CascadeController(SegmentConfig(), warm_start=False).segment(grad)
+    off = CascadeController(SegmentConfig(union=False), warm_start=False).segment(grad)
+    assert len(on) >= len(off) == 3
+    assert (on.T_H, on.T_HG) == (off.T_H, off.T_HG)

@@ -45,6 +45,10 @@ class SegmentConfig:
         Outer-loop search: a log-spaced grid, then halving steps around the best.
     warm_step : float
         Multiplicative T_H step of a warm-started (sequence) search.
+    union : bool
+        Beyond the paper: also keep the covers found at the other T_H the search evaluated
+        that overlap none found at the optimum (a faint book's edges may need a lower T_H
+        than the image's optimum, a busy one's a higher).
     """
 
     n_max: int = 100
@@ -58,6 +62,7 @@ class SegmentConfig:
     warm_step: float = 1.25
     max_inner: int = 12
     max_edge_frac: float = 0.08
+    union: bool = True
     quads: QuadConfig = field(default_factory=QuadConfig)
 
 

@@ -4,15 +4,20 @@ Outer loop: the Canny threshold T_H, searched on a log scale to maximise the seg
 quality y (eq. 2). Inner loop: the Hough threshold T_HG for each T_H, solved exactly inside
 :func:`rovis.segment.boundary.evaluate`. In a sequence the search starts from the previous
 frame's optimum and only climbs locally, falling back to the full search when the scene has
-changed so much that the local optimum is empty.
+changed so much that the local optimum is empty. Beyond the paper, the covers other
+evaluated T_H found where the optimum found none are kept too (:func:`with_other_covers`).
 """
 
 from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import replace
 
 import numpy as np
 
 from rovis.segment.boundary import Evaluation, SegmentConfig, Segmentation, evaluate, finish, roi_area
 from rovis.segment.edges import Gradients
+from rovis.segment.quads import Quads, quad_overlap
 
 
 class CascadeController:
@@ -53,6 +58,8 @@ class CascadeController:
             best = self._full_search(run)
         self.last_T_H = best.T_H if best.y > 0 else self.last_T_H
         iterations = sum(ev.inner_iterations for ev in seen.values())
+        if self.cfg.union and best.y > 0:
+            best = with_other_covers(best, seen.values(), self.cfg.quads.max_overlap)
         return finish(grad, best, iterations)
 
     def _full_search(self, run) -> Evaluation:  # type: ignore[no-untyped-def]
@@ -77,3 +84,25 @@ class CascadeController:
                     break
                 best, u = trial, u + direction * step
         return best
+
+
+def with_other_covers(best: Evaluation, evaluations: Iterable[Evaluation],
+                      max_overlap: float) -> Evaluation:
+    """``best`` with the covers other evaluations (other T_H) found where it found none.
+
+    Beyond the paper: eq. 2 picks one T_H per image, but a faint book may show all its
+    sides only at a lower T_H, and one on a busy background only at a higher. A cover of
+    another evaluation is added when it overlaps no cover kept so far by more than
+    ``max_overlap`` (of the smaller), taking the evaluations by decreasing y. The
+    thresholds, y and lines stay the optimum's.
+    """
+    kept = list(best.covers.corners)
+    extra = []
+    for ev in sorted((e for e in evaluations if e is not best), key=lambda e: -e.y):
+        for i, quad in enumerate(ev.covers.corners):
+            if all(quad_overlap(quad, k) <= max_overlap for k in kept):
+                kept.append(quad)
+                extra.append(ev.covers.take(np.array([i])))
+    if not extra:
+        return best
+    return replace(best, covers=Quads.concat([best.covers, *extra]))

@@ -77,6 +77,14 @@ class Quads:
         return cls(np.zeros((0, 4), np.intp), np.zeros((0, 4, 2)), np.zeros((0, 4)), np.zeros(0),
                    np.zeros(0, np.int64))
 
+    @classmethod
+    def concat(cls, parts: list[Quads]) -> Quads:
+        """The quads of ``parts`` in order (their ``lines`` still index each part's Lines)."""
+        if not parts:
+            return cls.empty()
+        return cls(*(np.concatenate([getattr(q, f) for q in parts]) for f in
+                     ("lines", "corners", "support", "n_f", "min_votes")))
+
 
 def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[int, int],
                     roi_area: float, cfg: QuadConfig = QuadConfig()) -> Quads:
