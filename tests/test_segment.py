@@ -199,7 +199,8 @@ def test_covers_found_at_other_thresholds_join_where_the_optimum_found_none():
                                    square(300, 0),    # a book the higher T_H has: not added
                                    square(0, 300)])   # another book: added
     high = _evaluation(200.0, 0.015, [square(290, 10)])  # a book: added, before low's
-    got = with_other_covers(best, [best, low, high], max_overlap=0.15)
+    got, sources = with_other_covers(best, [best, low, high], max_overlap=0.15)
+    assert sources == [high, low]
     # taken by decreasing y: the higher T_H's cover before the lower's overlapping one
     assert len(got.covers) == 3
     for quad, want in zip(got.covers.corners, (square(0, 0), square(290, 10), square(0, 300))):

@@ -34,10 +34,12 @@ class CascadeController:
         self.cfg = cfg or SegmentConfig()
         self.warm_start = warm_start
         self.last_T_H: float | None = None
+        self.last_extra_T_H: list[float] = []  # the other T_H whose covers were kept
 
     def reset(self) -> None:
         """Forget the previous optimum (next image gets a full search)."""
         self.last_T_H = None
+        self.last_extra_T_H = []
 
     def segment(self, grad: Gradients) -> Segmentation:
         """Search T_H and T_HG for one image, then refine the best covers."""
@@ -54,12 +56,16 @@ class CascadeController:
         best = None
         if self.warm_start and self.last_T_H is not None:
             best = self._climb(run, np.log(self.last_T_H))
+            if best.y > 0 and self.cfg.union:
+                for T_H in self.last_extra_T_H:  # where the last image's other covers were
+                    run(np.log(T_H))
         if best is None or best.y <= 0:
             best = self._full_search(run)
         self.last_T_H = best.T_H if best.y > 0 else self.last_T_H
         iterations = sum(ev.inner_iterations for ev in seen.values())
         if self.cfg.union and best.y > 0:
-            best = with_other_covers(best, seen.values(), self.cfg.quads.max_overlap)
+            best, sources = with_other_covers(best, seen.values(), self.cfg.quads.max_overlap)
+            self.last_extra_T_H = sorted({ev.T_H for ev in sources})
         return finish(grad, best, iterations)
 
     def _full_search(self, run) -> Evaluation:  # type: ignore[no-untyped-def]
@@ -87,8 +93,9 @@ class CascadeController:
 
 
 def with_other_covers(best: Evaluation, evaluations: Iterable[Evaluation],
-                      max_overlap: float) -> Evaluation:
-    """``best`` with the covers other evaluations (other T_H) found where it found none.
+                      max_overlap: float) -> tuple[Evaluation, list[Evaluation]]:
+    """``best`` with the covers other evaluations (other T_H) found where it found none,
+    and the evaluations that gave them.
 
     Beyond the paper: eq. 2 picks one T_H per image, but a faint book may show all its
     sides only at a lower T_H, and one on a busy background only at a higher. A cover of
@@ -97,12 +104,14 @@ def with_other_covers(best: Evaluation, evaluations: Iterable[Evaluation],
     thresholds, y and lines stay the optimum's.
     """
     kept = list(best.covers.corners)
-    extra = []
+    extra, sources = [], []
     for ev in sorted((e for e in evaluations if e is not best), key=lambda e: -e.y):
         for i, quad in enumerate(ev.covers.corners):
             if all(quad_overlap(quad, k) <= max_overlap for k in kept):
                 kept.append(quad)
                 extra.append(ev.covers.take(np.array([i])))
+                if not sources or sources[-1] is not ev:
+                    sources.append(ev)
     if not extra:
-        return best
-    return replace(best, covers=Quads.concat([best.covers, *extra]))
+        return best, []
+    return replace(best, covers=Quads.concat([best.covers, *extra])), sources
