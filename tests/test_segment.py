@@ -215,3 +215,20 @@ def test_the_union_can_be_switched_off():
     off = CascadeController(SegmentConfig(union=False), warm_start=False).segment(grad)
     assert len(on) >= len(off) == 3
     assert (on.T_H, on.T_HG) == (off.T_H, off.T_HG)
+
+
+def test_a_warm_started_search_keeps_the_covers_of_other_thresholds():
+    # a rendered desk where one cover shows only away from the image's optimum T_H
+    from rovis.synth import render, sample_scene
+    sc = sample_scene(104)
+    K, D = sc.rig.intrinsics("left")
+    maps = cv2.initUndistortRectifyMap(K, D, None, K, sc.rig.image_size, cv2.CV_16SC2)
+    grad = gradients(cv2.remap(render(sc, 104).left, *maps, cv2.INTER_LINEAR))
+    alone = CascadeController(SegmentConfig(union=False), warm_start=False).segment(grad)
+    ctl = CascadeController(SegmentConfig())
+    cold = ctl.segment(grad)
+    assert len(cold) > len(alone) and ctl.last_extra_T_H
+    warm = ctl.segment(grad)  # the next frame of a still scene
+    assert len(warm) == len(cold)
+    assert np.linalg.norm(np.sort(warm.corners.reshape(-1, 8), axis=0)
+                          - np.sort(cold.corners.reshape(-1, 8), axis=0), axis=1).max() < 0.5
