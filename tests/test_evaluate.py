@@ -239,3 +239,10 @@ def test_bench_pipeline_runs_small(capsys):
     for word in ("segmentation", "undistort", "total", "closed / open", "frames/s on one core",
                  "on 2 cores", "512x384", "closed, warm"):
         assert word in out, word
+    # the segmentation's own steps add up to (most of) it, per method
+    rows = {line.split()[0]: line for line in out.splitlines()
+            if line.startswith(("  ", "segmentation  "))}
+    median = {k: float(v.split()[1]) for k, v in rows.items() if k != "iterations"}
+    steps = sum(median[s] for s in ("canny", "hough", "quads", "refine"))
+    assert 0.5 * median["segmentation"] <= steps <= 1.05 * median["segmentation"]
+    assert float(rows["iterations"].split()[1]) > float(rows["iterations"].split()[2]) >= 2

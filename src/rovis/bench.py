@@ -69,6 +69,7 @@ def bench_triangulation(n_points: int = 1_000_000, *, repeats: int = 7,
 # --------------------------------------------------------------------------- the pipeline
 
 PIPELINE_STAGES = ("marker", "undistort", "gradients", "segmentation", "stereo", "pose", "extent")
+SEGMENTATION_STEPS = ("canny", "hough", "quads", "refine")  # parts of "segmentation"
 
 
 @dataclass(frozen=True)
@@ -77,9 +78,10 @@ class PipelineTiming:
     ``FrameResult.timing_ms``) and ``total_ms`` (wall time of ``Detector.detect``)."""
 
     method: str
-    stages: dict[str, np.ndarray]  # stage -> shape (n,)
+    stages: dict[str, np.ndarray]  # stage -> shape (n,); also "segmentation.<step>"
     total_ms: np.ndarray  # shape (n,)
     books: int  # books found over all frames
+    iterations: np.ndarray | None = None  # shape (n,): evaluations of the chain, both images
 
     @property
     def fps(self) -> float:
@@ -125,6 +127,15 @@ class PipelineBench:
         for stage in PIPELINE_STAGES:
             lines.append(f"{stage:<14}" + "".join(f"{cell(self.timings[m].stages[stage]):>26}"
                                                   for m in methods))
+            if stage == "segmentation":  # its steps, indented: they add up to it
+                for step in SEGMENTATION_STEPS:
+                    key = f"segmentation.{step}"
+                    lines.append(f"{'  ' + step:<14}" + "".join(
+                        f"{cell(self.timings[m].stages.get(key, np.zeros(1))):>26}"
+                        for m in methods))
+                lines.append(f"{'  iterations':<14}" + "".join(
+                    f"{np.median(self.timings[m].iterations) if self.timings[m].iterations is not None else float('nan'):>9.0f}{'':>17}"
+                    for m in methods))
         lines.append(f"{'total':<14}" + "".join(f"{cell(self.timings[m].total_ms):>26}"
                                                 for m in methods))
         lines.append(f"{'books found':<14}" + "".join(f"{self.timings[m].books:>26}"
@@ -186,8 +197,9 @@ def time_pipeline(rig: StereoRig, frames: list[tuple[np.ndarray, np.ndarray]], m
     cv2.setNumThreads(1)
     detector = Detector(rig, DetectConfig(method=method))
     detector.detect(*frames[0])  # warm-up
-    stages: dict[str, list[float]] = {s: [] for s in PIPELINE_STAGES}
-    total, books = [], 0
+    keys = PIPELINE_STAGES + tuple(f"segmentation.{step}" for step in SEGMENTATION_STEPS)
+    stages: dict[str, list[float]] = {s: [] for s in keys}
+    total, books, iterations = [], 0, []
     for k, (left, right) in enumerate(frames):
         detector.reset()
         if previous is not None:
@@ -196,10 +208,12 @@ def time_pipeline(rig: StereoRig, frames: list[tuple[np.ndarray, np.ndarray]], m
         result = detector.detect(left, right)
         total.append(1e3 * (time.perf_counter() - t0))
         books += len(result.objects)
-        for s in PIPELINE_STAGES:
+        iterations.append(sum(info.iterations for info in result.segmentation.values()))
+        for s in keys:
             stages[s].append(result.timing_ms.get(s, 0.0))
     name = method if previous is None else f"{method}, warm"
-    return PipelineTiming(name, {s: np.array(v) for s, v in stages.items()}, np.array(total), books)
+    return PipelineTiming(name, {s: np.array(v) for s, v in stages.items()}, np.array(total), books,
+                          np.array(iterations))
 
 
 _BENCH: dict[str, object] = {}

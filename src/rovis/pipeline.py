@@ -248,13 +248,16 @@ class Detector:
         # 3. segmentation per image
         segs: dict[str, Segmentation] = {}
         grads: dict[str, Gradients] = {}
+        steps: dict[str, float] = {}  # the segmentation's own steps, both images
         for cam in ("left", "right"):
             mask = self._roi_mask(rig, cam, T_world_marker)
             grads[cam] = grad = gradients(ideal[cam], mask)
             lap("gradients")
             segs[cam] = segment(ideal[cam], grad, self.cfg.method,
-                                controller=self._controllers[cam], cfg=self.cfg.segment)
+                                controller=self._controllers[cam], cfg=self.cfg.segment,
+                                timing=steps)
             lap("segmentation")
+        timing.update({f"segmentation.{step}": ms for step, ms in steps.items()})
         if len(segs["left"]) == 0 or len(segs["right"]) == 0:
             warnings.append("no book cover found in the "
                             + " and ".join(c for c in ("left", "right") if len(segs[c]) == 0)

@@ -107,7 +107,7 @@ class FrameResult:
     desk_plane: NDArray[np.float64] | None
     world_frame: str
     segmentation: dict[str, SegmentationInfo]
-    timing_ms: dict[str, float]
+    timing_ms: dict[str, float]  # per stage; "segmentation.X": its steps (both images)
     warnings: list[str]
     T_world_left: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
     lines: dict[str, Any] = field(default_factory=dict)  # Hough lines per camera, for overlays

@@ -8,6 +8,7 @@ orders their corners (eq. 1).
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import cv2
@@ -124,7 +125,8 @@ def roi_area(grad: Gradients) -> float:
 
 
 def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | None = None,
-             T_L: float | None = None, area: float | None = None) -> Evaluation:
+             T_L: float | None = None, area: float | None = None,
+             timing: dict[str, float] | None = None) -> Evaluation:
     """Run Canny → Hough → quads at one T_H and pick T_HG (or use the one given).
 
     The inner loop is exact and cheap: one Hough pass at the lowest threshold gives every
@@ -132,13 +134,19 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
     e^{-N/N_max}, y only grows with T_HG between those breakpoints, so its maximum is at
     one of them; with the printed e^{+N/N_max} it may also sit at the lowest T_HG with
     N ≤ N_max. Only those candidates are evaluated (at most ``cfg.max_inner``).
+
+    ``timing``, if given, accumulates the milliseconds spent in Canny (``"canny"``), Hough
+    (``"hough"``) and the quad stage with the inner loop (``"quads"``).
     """
     area = roi_area(grad) if area is None else area
+    clock = time.perf_counter()
     edges = canny(grad, T_H, T_L)
+    clock = _lap(timing, "canny", clock)
     low = cfg.T_HG_min if T_HG is None else int(T_HG)
     if T_HG is None and cv2.countNonZero(edges) > cfg.max_edge_frac * area:
         return Evaluation(T_H, low, 0.0, Lines.empty(), Quads.empty(), 1)
     lines = hough_lines(edges, low, grad=grad, max_lines=cfg.n_max + 1, box=grad.box)
+    clock = _lap(timing, "hough", clock)
     if len(lines) > cfg.n_max:  # above the (N_max+1)-th line's votes N ≤ N_max holds
         low = max(low, int(lines.votes[cfg.n_max]) + 1)
         lines = lines.take(lines.votes >= low)
@@ -162,11 +170,23 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
         if best is None or y > best.y:
             best = Evaluation(T_H, t, y, lines.take(lines.votes >= t), covers, len(candidates))
     assert best is not None
+    _lap(timing, "quads", clock)
     return best
 
 
-def finish(grad: Gradients, ev: Evaluation, iterations: int) -> Segmentation:
-    """Refine the chosen covers to sub-pixel corners and order them (eq. 1)."""
+def _lap(timing: dict[str, float] | None, stage: str, since: float) -> float:
+    """Add the milliseconds since ``since`` to ``timing[stage]`` (if timing is kept); now."""
+    now = time.perf_counter()
+    if timing is not None:
+        timing[stage] = timing.get(stage, 0.0) + 1e3 * (now - since)
+    return now
+
+
+def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
+           timing: dict[str, float] | None = None) -> Segmentation:
+    """Refine the chosen covers to sub-pixel corners and order them (eq. 1); ``timing``
+    accumulates the milliseconds under ``"refine"``."""
+    clock = time.perf_counter()
     if len(ev.covers) == 0:
         return Segmentation(np.zeros((0, 4, 2)), np.zeros((0, 4, 2)), np.zeros(0), ev.lines,
                             ev.T_H, ev.T_HG, ev.y, iterations)
@@ -174,6 +194,7 @@ def finish(grad: Gradients, ev: Evaluation, iterations: int) -> Segmentation:
     for quad in ev.covers.corners:
         refined.append(order_corners(refine_quad(grad, quad)))
         coarse.append(order_corners(quad))
+    _lap(timing, "refine", clock)
     return Segmentation(np.array(refined), np.array(coarse), ev.covers.support.mean(axis=1),
                         ev.lines, ev.T_H, ev.T_HG, ev.y, iterations)
 

@@ -41,8 +41,9 @@ class CascadeController:
         self.last_T_H = None
         self.last_extra_T_H = []
 
-    def segment(self, grad: Gradients) -> Segmentation:
-        """Search T_H and T_HG for one image, then refine the best covers."""
+    def segment(self, grad: Gradients, *, timing: dict[str, float] | None = None) -> Segmentation:
+        """Search T_H and T_HG for one image, then refine the best covers (``timing``: see
+        :func:`rovis.segment.boundary.evaluate`)."""
         area = roi_area(grad)
         seen: dict[float, Evaluation] = {}
 
@@ -50,7 +51,7 @@ class CascadeController:
             lo, hi = np.log(self.cfg.T_H_range[0]), np.log(self.cfg.T_H_range[1])
             key = round(float(np.clip(log_T_H, lo, hi)), 3)
             if key not in seen:
-                seen[key] = evaluate(grad, float(np.exp(key)), self.cfg, area=area)
+                seen[key] = evaluate(grad, float(np.exp(key)), self.cfg, area=area, timing=timing)
             return seen[key]
 
         best = None
@@ -66,7 +67,7 @@ class CascadeController:
         if self.cfg.union and best.y > 0:
             best, sources = with_other_covers(best, seen.values(), self.cfg.quads.max_overlap)
             self.last_extra_T_H = sorted({ev.T_H for ev in sources})
-        return finish(grad, best, iterations)
+        return finish(grad, best, iterations, timing=timing)
 
     def _full_search(self, run) -> Evaluation:  # type: ignore[no-untyped-def]
         lo, hi = np.log(self.cfg.T_H_range[0]), np.log(self.cfg.T_H_range[1])

@@ -29,7 +29,8 @@ METHODS = ("closed", "open", "auto-median", "auto-otsu", "lsd", "contour")
 
 def segment(gray: NDArray[np.uint8], grad: Gradients, method: str = "closed", *,
             controller: CascadeController | None = None,
-            cfg: SegmentConfig | None = None) -> Segmentation:
+            cfg: SegmentConfig | None = None,
+            timing: dict[str, float] | None = None) -> Segmentation:
     """Find book covers in one image with the named method.
 
     Parameters
@@ -42,12 +43,16 @@ def segment(gray: NDArray[np.uint8], grad: Gradients, method: str = "closed", *,
         One of :data:`METHODS`.
     controller : CascadeController, optional
         For ``closed``: a controller that keeps its optimum across a sequence.
+    timing : dict, optional
+        Accumulates milliseconds per step of the chain (Canny, Hough, quads, refine; see
+        :func:`rovis.segment.boundary.evaluate`).
     """
     cfg = cfg or (controller.cfg if controller is not None else SegmentConfig())
     if method == "closed":
-        return (controller or CascadeController(cfg, warm_start=False)).segment(grad)
+        return (controller or CascadeController(cfg, warm_start=False)).segment(grad, timing=timing)
     if method == "open":
-        return finish(grad, evaluate(grad, cfg.open_T_H, cfg, T_HG=cfg.open_T_HG), 1)
+        return finish(grad, evaluate(grad, cfg.open_T_H, cfg, T_HG=cfg.open_T_HG, timing=timing),
+                      1, timing=timing)
     if method in ("auto-median", "auto-otsu"):
         pixels = gray[grad.mask > 0] if grad.mask is not None else gray.ravel()
         if pixels.size == 0:
@@ -60,11 +65,12 @@ def segment(gray: NDArray[np.uint8], grad: Gradients, method: str = "closed", *,
                                       cv2.THRESH_BINARY | cv2.THRESH_OTSU)[0])
             T_L = 0.5 * T_H
         T_H = max(T_H, 1.0)
-        return finish(grad, evaluate(grad, T_H, cfg, T_HG=cfg.open_T_HG, T_L=T_L), 1)
+        return finish(grad, evaluate(grad, T_H, cfg, T_HG=cfg.open_T_HG, T_L=T_L, timing=timing),
+                      1, timing=timing)
     if method == "lsd":
-        return finish(grad, _lsd(gray, grad, cfg), 1)
+        return finish(grad, _lsd(gray, grad, cfg), 1, timing=timing)
     if method == "contour":
-        return finish(grad, _contours(grad, cfg), 1)
+        return finish(grad, _contours(grad, cfg), 1, timing=timing)
     raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
 
 
