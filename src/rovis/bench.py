@@ -127,11 +127,11 @@ class PipelineBench:
         for stage in PIPELINE_STAGES:
             lines.append(f"{stage:<14}" + "".join(f"{cell(self.timings[m].stages[stage]):>26}"
                                                   for m in methods))
-            if stage == "segmentation":  # its steps, indented: they add up to it
+            if stage == "segmentation":  # its steps, indented: they make up most of it
                 for step in SEGMENTATION_STEPS:
                     key = f"segmentation.{step}"
                     lines.append(f"{'  ' + step:<14}" + "".join(
-                        f"{cell(self.timings[m].stages.get(key, np.zeros(1))):>26}"
+                        f"{cell(self.timings[m].stages[key]) if key in self.timings[m].stages else '-':>26}"
                         for m in methods))
                 lines.append(f"{'  iterations':<14}" + "".join(
                     f"{np.median(self.timings[m].iterations) if self.timings[m].iterations is not None else float('nan'):>9.0f}{'':>17}"
@@ -210,10 +210,12 @@ def time_pipeline(rig: StereoRig, frames: list[tuple[np.ndarray, np.ndarray]], m
         books += len(result.objects)
         iterations.append(sum(info.iterations for info in result.segmentation.values()))
         for s in keys:
-            stages[s].append(result.timing_ms.get(s, 0.0))
+            stages[s].append(result.timing_ms.get(s, np.nan))
     name = method if previous is None else f"{method}, warm"
-    return PipelineTiming(name, {s: np.array(v) for s, v in stages.items()}, np.array(total), books,
-                          np.array(iterations))
+    # a stage the method never ran (lsd has no Canny) is left out; one it skipped counts 0
+    timed = {s: np.nan_to_num(np.array(v)) for s, v in stages.items()
+             if s in PIPELINE_STAGES or not np.all(np.isnan(v))}
+    return PipelineTiming(name, timed, np.array(total), books, np.array(iterations))
 
 
 _BENCH: dict[str, object] = {}

@@ -188,6 +188,7 @@ def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
     accumulates the milliseconds under ``"refine"``."""
     clock = time.perf_counter()
     if len(ev.covers) == 0:
+        _lap(timing, "refine", clock)
         return Segmentation(np.zeros((0, 4, 2)), np.zeros((0, 4, 2)), np.zeros(0), ev.lines,
                             ev.T_H, ev.T_HG, ev.y, iterations)
     refined, coarse = [], []
