@@ -56,7 +56,7 @@ def main() -> None:
         band = next(k for k, (lo, hi) in enumerate(BANDS) if r.truth["lux"] < hi or k == len(BANDS) - 1)
         for name, (method, sign) in methods.items():
             t0 = time.perf_counter()
-            seg = segment(ideal, grad, method, cfg=SegmentConfig(quality_sign=sign, n_max=int(__import__("os").environ.get("NMAX", 100)), T_HG_min=int(__import__("os").environ.get("THGMIN", 30))))
+            seg = segment(ideal, grad, method, cfg=SegmentConfig(quality_sign=sign))
             st = stats[(name, band)]
             st["ms"].append(1e3 * (time.perf_counter() - t0))
             used = set()
