@@ -110,12 +110,13 @@ def fit_extent(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
         changed = False
         for s in range(4):
             d = _grow_side(P, s, Q, grads, min_strength, drop, cfg)
-            if d > 0 and cfg.height_check and _on_desk(_moved(P, s, np.array([d]))[0], s, Q,
-                                                       grads, up, drop, cfg):
-                d = 0.0  # a shadow's edge or a line on the desk: the cover ends where it was
-            if d > 0:
-                P = _moved(P, s, np.array([d]))[0]
-                changed = moved = True
+            if d <= 0:
+                continue
+            grown = _moved(P, s, np.array([d]))[0]
+            if cfg.height_check and _on_desk(grown, s, Q, grads, up, drop, cfg):
+                continue  # a shadow's edge or a line on the desk: the cover ends where it was
+            P = grown
+            changed = moved = True
         if not changed:
             break
     return P if moved else None
