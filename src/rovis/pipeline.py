@@ -13,6 +13,7 @@ sequence, the controllers' previous optimum (warm start).
 from __future__ import annotations
 
 import time
+from collections import Counter
 from dataclasses import dataclass, field, fields, is_dataclass, replace
 from typing import Any, Literal, Sequence
 
@@ -30,6 +31,13 @@ from rovis.segment.edges import CANNY_LOW_RATIO, Gradients
 from rovis.segment.methods import METHODS, segment
 from rovis.segment.quads import quad_overlap
 from rovis.stereo import Match, StereoConfig, find_in_other_view, match_quads
+
+
+# Why a stereo pair of quads makes no book (:meth:`Detector._reconstruct_or_why`): its
+# corners do not triangulate to a quadrilateral; a side is longer than any book; the cover
+# is tilted against the desk; it stands lower than the search assumed or above the ROI;
+# a side lies on the desk.
+DROP_REASONS = ("degenerate", "too long", "tilted", "height", "side on desk")
 
 
 @dataclass(frozen=True)
@@ -271,26 +279,29 @@ class Detector:
                       float(min(segs["left"].support[mt.left], segs["right"].support[mt.right])),
                       mt.error_px) for mt in matches]
         lap("stereo")
-        books = [(pair, self._reconstruct(rig, pair, desk_plane)) for pair in pairs]
+        books = [(pair, *self._reconstruct_or_why(rig, pair, desk_plane)) for pair in pairs]
         lap("pose")
         if self.cfg.stereo.transfer and desk_plane is not None:
             # A matched pair that is no flat cover often pairs a cover in one image with its
             # outline in the other: both quads are free again, for each to be looked for in
             # the other image on its own.
-            kept = [mt for mt, (_, book) in zip(matches, books) if book is not None]
+            kept = [mt for mt, (_, book, _) in zip(matches, books) if book is not None]
             more = self._transfer(rig, segs, grads, ideal, kept, desk_plane)
             lap("stereo")
             pairs += more
-            books += [(pair, self._reconstruct(rig, pair, desk_plane)) for pair in more]
+            books += [(pair, *self._reconstruct_or_why(rig, pair, desk_plane)) for pair in more]
             lap("pose")
-        found = [(pair, book) for pair, book in books if book is not None]
+        found = [(pair, book) for pair, book, _ in books if book is not None]
         # a failed pair whose quad became a book through the one-image search is not lost
-        dropped = sum(book is None and not any(
-            quad_overlap(pair.left, p.left) > self.cfg.stereo.transfer_max_overlap
-            for p, _ in found) for pair, book in books)
+        dropped = [(why, pair.left, pair.right) for pair, book, why in books
+                   if book is None and not any(
+                       quad_overlap(pair.left, p.left) > self.cfg.stereo.transfer_max_overlap
+                       for p, _ in found)]
         if dropped:
-            warnings.append(f"{dropped} stereo pair(s) of quads dropped: no flat, book-sized "
-                            "cover on the desk")
+            count = Counter(why for why, _, _ in dropped)
+            warnings.append(f"{len(dropped)} stereo pair(s) of quads dropped: no flat, book-sized "
+                            "cover on the desk ("
+                            + ", ".join(f"{why}: {n}" for why, n in count.most_common()) + ")")
         # beyond the paper: each cover's sides moved to its edges, seen in both images
         if (self.cfg.extent.grow or self.cfg.extent.shrink) and desk_plane is not None:
             found = self._fit_extents(rig, segs, grads, found, desk_plane)
@@ -304,7 +315,8 @@ class Detector:
                                                 n_quads=len(segs[cam]))
                           for cam in ("left", "right")},
             timing_ms=timing, warnings=warnings, T_world_left=rig.T_world_left.copy(),
-            lines={cam: segs[cam].lines for cam in segs})
+            lines={cam: segs[cam].lines for cam in segs},
+            covers={cam: segs[cam].corners for cam in segs}, dropped=dropped)
 
     # -- stages ---------------------------------------------------------------------------
 
@@ -418,33 +430,42 @@ class Detector:
 
     def _reconstruct(self, rig: StereoRig, pair: Pair,
                      desk_plane: NDArray[np.float64] | None) -> BookDetection | None:
+        return self._reconstruct_or_why(rig, pair, desk_plane)[0]
+
+    def _reconstruct_or_why(self, rig: StereoRig, pair: Pair,
+                            desk_plane: NDArray[np.float64] | None,
+                            ) -> tuple[BookDetection | None, str]:
+        """The book a pair of quads makes, or None and the check it failed (one of
+        :data:`DROP_REASONS`)."""
         c_left, c_right = pair.left, pair.right
         P = geometry.triangulate(rig.Q_L, rig.Q_R, c_left, c_right, method=self.cfg.triangulation)
         if not np.all(np.isfinite(P)):
-            return None
+            return None, "degenerate"
         if self.cfg.fit_rectangle:
             try:
                 P = geometry.fit_rectangle(rig.Q_L, rig.Q_R, c_left, c_right, P)
             except ValueError:
-                return None
+                return None, "degenerate"
         try:
             pose = geometry.pose_from_corners(P, desk_plane)
         except ValueError:
-            return None
+            return None, "degenerate"
         if max(pose.size[0], pose.size[1]) > self.cfg.max_cover_side:
-            return None  # two books end to end, or a cover and a line beyond it
+            return None, "too long"  # two books end to end, or a cover and a line beyond it
         if desk_plane is not None:
             tilt = np.degrees(np.arccos(np.clip(pose.R[:, 2] @ desk_plane[:3], -1, 1)))
+            if tilt > self.cfg.max_tilt_deg:
+                return None, "tilted"
             # a cover found in one image only must stand as high as the search assumed: a
             # flat pattern on the desk (a sheet, a seam rectangle) is no book
             low = self.cfg.stereo.min_height if pair.transferred else 0.0
-            if tilt > self.cfg.max_tilt_deg or not (low < pose.size[2] <= self.cfg.stereo.max_height):
-                return None
+            if not low < pose.size[2] <= self.cfg.stereo.max_height:
+                return None, "height"
             # a side lying on the desk is a line on the desk (a shadow's edge, the
             # page block's foot), not the edge of a cover: the quad is no cover
             h = geometry.plane_distance(desk_plane, P)
             if np.any(0.5 * (h + np.roll(h, -1)) < self.cfg.min_side_height):  # side midpoints
-                return None
+                return None, "side on desk"
         reproj = np.concatenate([
             np.linalg.norm(geometry.project(rig.Q_L, P) - c_left, axis=1),
             np.linalg.norm(geometry.project(rig.Q_R, P) - c_right, axis=1)])
@@ -453,7 +474,7 @@ class Detector:
             corners_left_px=rig.distort_points(c_left, "left"),
             corners_right_px=rig.distort_points(c_right, "right"),
             reprojection_error_px=float(reproj.mean()),
-            quality=pair.quality, stereo_error_px=pair.error_px)
+            quality=pair.quality, stereo_error_px=pair.error_px), ""
 
 
 def roi_mask(rig: StereoRig, camera: Literal["left", "right"], T_world_marker: NDArray[np.float64], *,

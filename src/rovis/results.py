@@ -111,6 +111,11 @@ class FrameResult:
     warnings: list[str]
     T_world_left: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
     lines: dict[str, Any] = field(default_factory=dict)  # Hough lines per camera, for overlays
+    # for overlays and diagnosis (ideal pixels): each camera's cover quads (K, 4, 2), and
+    # the stereo pairs of quads no book came from, with the check each failed
+    covers: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+    dropped: list[tuple[str, NDArray[np.float64], NDArray[np.float64]]] = field(
+        default_factory=list)
 
     def __len__(self) -> int:
         return len(self.objects)
