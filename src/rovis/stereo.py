@@ -48,7 +48,8 @@ class StereoConfig:
     min_height: float = 0.004  # cover height range searched above the desk, metres
     max_cover_height: float = 0.10  # (the ROI's height)
     height_step: float = 0.002  # ~0.1 px of disparity at 1-2 m
-    max_refine_px: float = 2.0  # refined corners this close to the predicted ones
+    max_refine_px: float = 4.0  # refined corners this close to the predicted ones (the source
+    # quad may be a few pixels off: a side on its page block, or stopped short)
     transfer_max_overlap: float = 0.3  # of the smaller quad, with one already used
 
 
