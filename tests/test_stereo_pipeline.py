@@ -54,7 +54,7 @@ def test_the_desk_plane_rejects_a_quad_at_the_wrong_depth(scene):
                            desk_plane=r.truth["desk_plane"])) == 1
 
 
-def _cover_image(quad, shape, rng, cover_texture=0.0):
+def _cover_image(quad, shape, rng, cover_texture=0.0, cover_grey=30.0):
     """A desk of grey 90 with a dark cover (grey 30, plus texture of this std) on it, and
     sensor noise of 2.5 grey levels: a plain cover in dim light."""
     import cv2
@@ -62,23 +62,25 @@ def _cover_image(quad, shape, rng, cover_texture=0.0):
     img = np.full(shape, 90.0)
     inside = np.zeros(shape, np.uint8)
     cv2.fillConvexPoly(inside, np.rint(quad).astype(np.int32), 1)
-    texture = 30.0 + cover_texture * rng.standard_normal(shape)
+    texture = cover_grey + cover_texture * rng.standard_normal(shape)
     img = np.where(inside > 0, texture, img) + 2.5 * rng.standard_normal(shape)
     return np.clip(img, 0, 255).astype(np.uint8)
 
 
-@pytest.mark.parametrize("right_texture, matched", [(0.0, True), (30.0, False)])
-def test_two_plain_covers_match_despite_their_noise(scene, right_texture, matched):
+@pytest.mark.parametrize("right_texture, right_grey, matched",
+                         [(0.0, 30.0, True), (30.0, 30.0, False), (0.0, 70.0, False)])
+def test_two_plain_covers_match_despite_their_noise(scene, right_texture, right_grey, matched):
     # what varies on a plain cover is noise, uncorrelated between the cameras: the
     # appearance test must not read it as two different covers (nor a plain one as a
-    # textured one)
+    # textured one, or as a plain one far brighter)
     sc, r = scene
     rig = sc.rig
     P = np.array(r.truth["books"][0]["corners"])
     left, right = _ideal(rig, P, rig.Q_L), _ideal(rig, P, rig.Q_R)
     shape = rig.image_size[::-1]
     gray_l = _cover_image(left, shape, np.random.default_rng(1))
-    gray_r = _cover_image(right, shape, np.random.default_rng(2), cover_texture=right_texture)
+    gray_r = _cover_image(right, shape, np.random.default_rng(2), cover_texture=right_texture,
+                          cover_grey=right_grey)
     found = match_quads(left[None], right[None], rig.Q_L, rig.Q_R,
                         desk_plane=r.truth["desk_plane"], gray_left=gray_l, gray_right=gray_r)
     assert (len(found) == 1) == matched

@@ -31,6 +31,7 @@ from rovis.segment.edges import Gradients
 
 _PATCH = (48, 36)  # rectified cover patch, px
 _PLAIN_STD = 4.0  # grey levels: a cover patch varying less than this is plain
+_PLAIN_MEAN = 20.0  # grey levels: two plain patches this close in brightness look alike
 
 
 @dataclass(frozen=True)
@@ -264,11 +265,12 @@ def _cover_ncc(gray_l: NDArray[np.uint8], c_l: NDArray[np.float64], gray_r: NDAr
         H = cv2.getPerspectiveTransform(c.astype(np.float32), dst)
         patches.append(cv2.warpPerspective(img, H, (w, h), flags=cv2.INTER_AREA).astype(np.float64))
     a, b = (p[3:-3, 3:-3].ravel() for p in patches)  # the border may catch the desk
-    a, b = a - a.mean(), b - b.mean()
     # Two plain covers: what varies in them is sensor noise, whose NCC is ~0 whatever the
-    # match (measured: 0.0-0.18 for right matches of dark covers at 15-60 lx). Plain on both
-    # sides is a match; plain against textured is not (the NCC then is low).
+    # match (0.0-0.18 for right matches of dark covers at 15-60 lx, a one-off measurement).
+    # Plain on both sides is a match if equally bright; plain against textured is not (the
+    # NCC then is low).
     if max(a.std(), b.std()) < _PLAIN_STD:
-        return 1.0
+        return 1.0 if abs(a.mean() - b.mean()) <= _PLAIN_MEAN else 0.0
+    a, b = a - a.mean(), b - b.mean()
     denom = np.sqrt((a @ a) * (b @ b))
     return float(a @ b / denom) if denom > 1e-6 else 0.0
