@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from rovis.pipeline import DetectConfig, Detector, detect, with_settings
+from rovis.pipeline import DROP_REASONS, DetectConfig, Detector, detect, with_settings
 from rovis.segment import canny
 from rovis.stereo import StereoConfig, find_in_other_view, match_quads
 from rovis.synth import render, sample_scene
@@ -217,6 +217,20 @@ def test_colour_and_16_bit_input_are_converted(scene):
     wide = r.right.astype(np.uint16) * 257
     res = detect(colour, wide, sc.rig, method="open")
     assert res.world_frame == "marker"
+
+
+def test_dropped_pairs_are_kept_with_the_check_they_failed(scene):
+    # no tilt allowed: every pair fails the tilt test, and the result says so
+    sc, r = scene
+    result = Detector(sc.rig, with_settings(DetectConfig(), ["max_tilt_deg=0"])).detect(
+        r.left, r.right)
+    assert sorted(result.covers) == ["left", "right"]
+    assert all(q.ndim == 3 and q.shape[1:] == (4, 2) for q in result.covers.values())
+    reasons = [why for why, _, _ in result.dropped]
+    assert "tilted" in reasons and set(reasons) <= set(DROP_REASONS)
+    assert not result.objects
+    assert any(f"tilted: {reasons.count('tilted')}" in w for w in result.warnings)
+    assert all(left.shape == right.shape == (4, 2) for _, left, right in result.dropped)
 
 
 def test_settings_by_name_reach_nested_fields_and_name_bad_ones():

@@ -35,8 +35,9 @@ from rovis.stereo import Match, StereoConfig, find_in_other_view, match_quads
 
 # Why a stereo pair of quads makes no book (:meth:`Detector._reconstruct_or_why`): its
 # corners do not triangulate to a quadrilateral; a side is longer than any book; the cover
-# is tilted against the desk; it stands lower than the search assumed or above the ROI;
-# a side lies on the desk.
+# is tilted against the desk; it stands below the desk (or, found in one image only, lower
+# than the search looked) or more than StereoConfig.max_height above it; a side lies on
+# the desk.
 DROP_REASONS = ("degenerate", "too long", "tilted", "height", "side on desk")
 
 
