@@ -31,14 +31,16 @@ from rovis.segment.edges import CANNY_LOW_RATIO, Gradients
 from rovis.segment.methods import METHODS, segment
 from rovis.segment.quads import quad_overlap
 from rovis.stereo import Match, StereoConfig, find_in_other_view, match_quads
+from rovis.sweep import Sweep, SweepConfig, contradicts, high_pass, on_plane, texture_height
 
 
 # Why a stereo pair of quads makes no book (:meth:`Detector._reconstruct_or_why`): its
 # corners do not triangulate to a quadrilateral; a side is longer than any book; the cover
 # is tilted against the desk; it stands below the desk (or, found in one image only, lower
 # than the search looked) or more than StereoConfig.max_height above it; a side lies on
-# the desk.
-DROP_REASONS = ("degenerate", "too long", "tilted", "height", "side on desk")
+# the desk; its print matches between the images at another height than its corners
+# (rovis.sweep).
+DROP_REASONS = ("degenerate", "too long", "tilted", "height", "side on desk", "texture height")
 
 
 @dataclass(frozen=True)
@@ -71,9 +73,11 @@ class DetectConfig:
     fit_rectangle : bool
         Replace the four separately triangulated corners by one 3D rectangle fitted to both
         images' corners (:func:`rovis.geometry.fit_rectangle`; beyond the paper).
-    segment, stereo, extent : SegmentConfig, StereoConfig, ExtentConfig
+    segment, stereo, extent, sweep : SegmentConfig, StereoConfig, ExtentConfig, SweepConfig
         ``extent``: moving each cover's sides to its edges in both images
-        (:mod:`rovis.extent`; beyond the paper; needs the desk plane).
+        (:mod:`rovis.extent`; beyond the paper; needs the desk plane). ``sweep``: each
+        cover's height tested against its print (:mod:`rovis.sweep`; beyond the paper;
+        needs the desk plane).
     """
 
     method: str = "closed"
@@ -92,6 +96,7 @@ class DetectConfig:
     segment: SegmentConfig = field(default_factory=SegmentConfig)
     stereo: StereoConfig = field(default_factory=StereoConfig)
     extent: ExtentConfig = field(default_factory=ExtentConfig)
+    sweep: SweepConfig = field(default_factory=SweepConfig)
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -280,7 +285,10 @@ class Detector:
                       float(min(segs["left"].support[mt.left], segs["right"].support[mt.right])),
                       mt.error_px) for mt in matches]
         lap("stereo")
-        books = [(pair, *self._reconstruct_or_why(rig, pair, desk_plane)) for pair in pairs]
+        # the print inside each cover, both images, for the height test (rovis.sweep)
+        texture = ({cam: high_pass(ideal[cam], self.cfg.sweep.sigma_px) for cam in ideal}
+                   if self.cfg.sweep.check and desk_plane is not None else None)
+        books = [(pair, *self._reconstruct_or_why(rig, pair, desk_plane, texture)) for pair in pairs]
         lap("pose")
         if self.cfg.stereo.transfer and desk_plane is not None:
             # A matched pair that is no flat cover often pairs a cover in one image with its
@@ -290,7 +298,8 @@ class Detector:
             more = self._transfer(rig, segs, grads, ideal, kept, desk_plane)
             lap("stereo")
             pairs += more
-            books += [(pair, *self._reconstruct_or_why(rig, pair, desk_plane)) for pair in more]
+            books += [(pair, *self._reconstruct_or_why(rig, pair, desk_plane, texture))
+                      for pair in more]
             lap("pose")
         found = [(pair, book) for pair, book, _ in books if book is not None]
         # a failed pair whose quad became a book through the one-image search is not lost
@@ -433,11 +442,53 @@ class Detector:
                      desk_plane: NDArray[np.float64] | None) -> BookDetection | None:
         return self._reconstruct_or_why(rig, pair, desk_plane)[0]
 
+    def _pose_fails(self, pose: geometry.BookPose, P: NDArray[np.float64],
+                    desk_plane: NDArray[np.float64] | None, pair: Pair) -> str:
+        """The first pose check (:data:`DROP_REASONS`) the cover fails, or ``""``."""
+        if max(pose.size[0], pose.size[1]) > self.cfg.max_cover_side:
+            return "too long"  # two books end to end, or a cover and a line beyond it
+        if desk_plane is None:
+            return ""
+        tilt = np.degrees(np.arccos(np.clip(pose.R[:, 2] @ desk_plane[:3], -1, 1)))
+        if tilt > self.cfg.max_tilt_deg:
+            return "tilted"
+        # a cover found in one image only must stand as high as the search assumed: a
+        # flat pattern on the desk (a sheet, a seam rectangle) is no book
+        low = self.cfg.stereo.min_height if pair.transferred else 0.0
+        if not low < pose.size[2] <= self.cfg.stereo.max_height:
+            return "height"
+        # a side lying on the desk is a line on the desk (a shadow's edge, the page
+        # block's foot), not the edge of a cover: the quad is no cover
+        h = geometry.plane_distance(desk_plane, P)
+        if np.any(0.5 * (h + np.roll(h, -1)) < self.cfg.min_side_height):  # side midpoints
+            return "side on desk"
+        return ""
+
+    def _on_plane(self, rig: StereoRig, c_left: NDArray[np.float64], c_right: NDArray[np.float64],
+                  desk_plane: NDArray[np.float64], sweep: Sweep) -> NDArray[np.float64] | None:
+        """The cover moved to the height its print gives, (4, 3) world corners, or None.
+
+        Only a print that matches nearly perfectly at one height is one flat surface: a
+        weaker match (a quad over two books, over a cover and its neighbour) is no cover.
+        Each image's quad is laid on that plane; the two must agree (a quad a few pixels
+        off in one image is what moved the cover), and their mean is the cover.
+        """
+        cfg = self.cfg.sweep
+        if sweep.best_ncc < cfg.min_ncc_to_move:
+            return None
+        P_left = on_plane(rig.Q_L, c_left, desk_plane, sweep.best_height)
+        P_right = on_plane(rig.Q_R, c_right, desk_plane, sweep.best_height)
+        if np.max(np.linalg.norm(P_left - P_right, axis=1)) > cfg.max_spread:
+            return None
+        return 0.5 * (P_left + P_right)
+
     def _reconstruct_or_why(self, rig: StereoRig, pair: Pair,
                             desk_plane: NDArray[np.float64] | None,
+                            texture: dict[str, NDArray[np.float32]] | None = None,
                             ) -> tuple[BookDetection | None, str]:
         """The book a pair of quads makes, or None and the check it failed (one of
-        :data:`DROP_REASONS`)."""
+        :data:`DROP_REASONS`). ``texture``: both ideal images high-passed
+        (:func:`rovis.sweep.high_pass`), for the height test of the cover's print."""
         c_left, c_right = pair.left, pair.right
         P = geometry.triangulate(rig.Q_L, rig.Q_R, c_left, c_right, method=self.cfg.triangulation)
         if not np.all(np.isfinite(P)):
@@ -451,22 +502,23 @@ class Detector:
             pose = geometry.pose_from_corners(P, desk_plane)
         except ValueError:
             return None, "degenerate"
-        if max(pose.size[0], pose.size[1]) > self.cfg.max_cover_side:
-            return None, "too long"  # two books end to end, or a cover and a line beyond it
-        if desk_plane is not None:
-            tilt = np.degrees(np.arccos(np.clip(pose.R[:, 2] @ desk_plane[:3], -1, 1)))
-            if tilt > self.cfg.max_tilt_deg:
-                return None, "tilted"
-            # a cover found in one image only must stand as high as the search assumed: a
-            # flat pattern on the desk (a sheet, a seam rectangle) is no book
-            low = self.cfg.stereo.min_height if pair.transferred else 0.0
-            if not low < pose.size[2] <= self.cfg.stereo.max_height:
-                return None, "height"
-            # a side lying on the desk is a line on the desk (a shadow's edge, the
-            # page block's foot), not the edge of a cover: the quad is no cover
-            h = geometry.plane_distance(desk_plane, P)
-            if np.any(0.5 * (h + np.roll(h, -1)) < self.cfg.min_side_height):  # side midpoints
-                return None, "side on desk"
+        why = self._pose_fails(pose, P, desk_plane, pair)
+        if why:
+            return None, why
+        if texture is not None and desk_plane is not None:
+            # the cover's print against its corners' height (rovis.sweep)
+            sweep, at_corners = texture_height(texture["left"], texture["right"], rig.Q_L,
+                                               rig.Q_R, c_left, desk_plane, pose.size[2],
+                                               self.cfg.sweep)
+            if contradicts(sweep, at_corners, self.cfg.sweep):
+                assert sweep is not None
+                P = self._on_plane(rig, c_left, c_right, desk_plane, sweep)
+                if P is None:
+                    return None, "texture height"
+                pose = geometry.pose_from_corners(P, desk_plane)
+                why = self._pose_fails(pose, P, desk_plane, pair)  # e.g. a print on the desk
+                if why:
+                    return None, why
         reproj = np.concatenate([
             np.linalg.norm(geometry.project(rig.Q_L, P) - c_left, axis=1),
             np.linalg.norm(geometry.project(rig.Q_R, P) - c_right, axis=1)])

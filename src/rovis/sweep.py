@@ -1,0 +1,249 @@
+"""A cover's height from its texture: a plane sweep between the two images (beyond the paper).
+
+The corners give a cover's height through their disparity, and a few pixels of error in
+one image move it by centimetres: at 1 m from a 12 cm baseline one pixel of disparity is
+about 1 cm of height. A side taken on the page block's outer edge in one image, or a faint
+side taken on a print line near it, shifts that image's quad, and the two quads still
+triangulate to a flat, book-sized cover at the wrong height (Table I had covers 41 and 44 mm
+too high). No test on the corners can see it.
+
+The cover's own print is an independent witness. Seen through the plane parallel to the
+desk at height h, the right image maps into the left by that plane's homography; inside the
+cover the two agree best at the cover's true height. :func:`sweep_heights` scores heights
+by the normalised cross-correlation (NCC) of the high-passed left image inside the cover
+(inset from its sides, which may be wrong) and the right image warped through each plane.
+A cover whose texture matches clearly better at another height than its corners' is not
+one cover seen in both images: the pipeline drops it (reason ``"texture height"``).
+
+A plain cover has no texture to match: its best NCC stays low and it testifies to nothing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    """The texture check of each cover's height (metres unless noted).
+
+    ``check`` turns it on; ``sigma_px``: the high-pass removes shading smoother than this
+    Gaussian (pixels), leaving the print; heights from ``min_height`` to ``max_height``
+    above the desk are tried every ``coarse_step``, then every ``step`` near the best;
+    ``inset``: the fraction of the cover's smaller image side kept clear of its sides;
+    ``max_samples``: the most left pixels compared;
+    the texture testifies when its best NCC reaches ``min_ncc`` and beats the NCC at the
+    corners' height by more than ``max_gap``. The cover is then moved to the texture's
+    height if its best NCC reaches ``min_ncc_to_move`` (one flat surface) and both images'
+    quads, laid on that plane, agree within ``max_spread`` at every corner; otherwise it is
+    dropped.
+    """
+
+    check: bool = True
+    sigma_px: float = 1.5
+    min_height: float = 0.0
+    max_height: float = 0.12
+    coarse_step: float = 0.004
+    step: float = 0.001
+    inset: float = 0.1
+    max_samples: int = 2000
+    min_ncc: float = 0.3
+    max_gap: float = 0.1
+    min_ncc_to_move: float = 0.85
+    max_spread: float = 0.015
+
+    def __post_init__(self) -> None:
+        if not (self.sigma_px > 0 and self.coarse_step > 0 and self.step > 0
+                and self.max_height > self.min_height and self.max_samples >= 50):
+            raise ValueError("sweep: sigma_px, coarse_step and step must be positive, "
+                             "max_height above min_height and max_samples at least 50, got "
+                             f"{self}")
+
+
+@dataclass(frozen=True, eq=False)
+class Sweep:
+    """NCC of the cover's texture between the two images, per height above the desk.
+
+    Attributes
+    ----------
+    heights : ndarray, shape (H,), metres, increasing
+    ncc : ndarray, shape (H,), in [-1, 1]
+    """
+
+    heights: NDArray[np.float64]
+    ncc: NDArray[np.float64]
+
+    @property
+    def best_height(self) -> float:
+        return float(self.heights[int(np.argmax(self.ncc))])
+
+    @property
+    def best_ncc(self) -> float:
+        return float(self.ncc.max())
+
+
+def high_pass(gray: NDArray[np.uint8], sigma_px: float) -> NDArray[np.float32]:
+    """The image less its Gaussian blur: print and texture without the shading."""
+    img = gray.astype(np.float32)
+    return img - cv2.GaussianBlur(img, (0, 0), sigma_px)
+
+
+def plane_homography(Q: ArrayLike, origin: ArrayLike, e1: ArrayLike, e2: ArrayLike) -> NDArray[np.float64]:
+    """3×3 homography from plane coordinates (u, v) to pixels: X = origin + u·e1 + v·e2.
+
+    Parameters
+    ----------
+    Q : array_like, shape (3, 4)
+        World → pixel projection.
+    origin, e1, e2 : array_like, shape (3,)
+        A point of the plane and two directions in it (world, metres).
+    """
+    B = np.zeros((4, 3))
+    B[:3, 0], B[:3, 1], B[:3, 2], B[3, 2] = e1, e2, origin, 1.0
+    return np.asarray(Q, dtype=np.float64) @ B
+
+
+def sweep_heights(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: ArrayLike,
+                  Q_R: ArrayLike, quad_left: ArrayLike, desk_plane: ArrayLike,
+                  heights: ArrayLike, *, inset: float = 0.1,
+                  max_samples: int = 2000) -> Sweep | None:
+    """NCC of the cover's texture between the images for each height above the desk.
+
+    Parameters
+    ----------
+    left, right : ndarray, shape (H, W), float32
+        High-passed ideal images (:func:`high_pass`).
+    Q_L, Q_R : array_like, shape (3, 4)
+        World → ideal pixel projections.
+    quad_left : array_like, shape (4, 2)
+        The cover in the left ideal image, pixels.
+    desk_plane : array_like, shape (4,)
+        ``[nx, ny, nz, d]``, n·X + d = 0, n up, world.
+    heights : array_like, shape (H,)
+        Metres above the desk.
+    inset : float
+        Fraction of the quad's smaller side (in pixels) kept clear of its sides.
+    max_samples : int
+        Left pixels compared at most (an even subsample of the cover): the cost per
+        height stays small whatever the cover's size.
+
+    Returns
+    -------
+    Sweep or None
+        None when the cover is too small or outside the image, or has no texture at all.
+    """
+    quad = np.asarray(quad_left, dtype=np.float64)
+    h_img, w_img = left.shape
+    x0, y0 = np.maximum(np.floor(quad.min(axis=0)).astype(int), 0)
+    x1, y1 = np.minimum(np.ceil(quad.max(axis=0)).astype(int) + 1, [w_img, h_img])
+    if x1 - x0 < 8 or y1 - y0 < 8:
+        return None
+    mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    cv2.fillConvexPoly(mask, np.rint(quad - [x0, y0]).astype(np.int32), 255)
+    sides = np.linalg.norm(quad - np.roll(quad, -1, axis=0), axis=1)
+    k = 2 * max(1, int(round(inset * sides.min() / 2))) + 1
+    ys, xs = np.nonzero(cv2.erode(mask, np.ones((k, k), np.uint8)))
+    if len(xs) < 50:
+        return None
+    keep = np.linspace(0, len(xs) - 1, min(len(xs), max_samples)).astype(np.intp)
+    xs, ys = xs[keep] + x0, ys[keep] + y0
+    a = left[ys, xs].astype(np.float64)
+    if a.std() <= 0:
+        return None
+    a = (a - a.mean()) / (a.std() * a.size)
+
+    # Each left pixel through each plane into the right image: a plane's homography to the
+    # left pixels (H_L) and to the right (H_R) give right ← left = H_R · H_L⁻¹.
+    heights = np.asarray(heights, dtype=np.float64)
+    on_desk, n, e1, e2 = _plane_frame(desk_plane)
+    B = np.zeros((len(heights), 4, 3))  # plane (u, v, 1) → world, one plane per height
+    B[:, :3, 0], B[:, :3, 1], B[:, 3, 2] = e1, e2, 1.0
+    B[:, :3, 2] = on_desk + heights[:, None] * n
+    H_L = np.asarray(Q_L, dtype=np.float64) @ B
+    H_R = np.asarray(Q_R, dtype=np.float64) @ B
+    p = np.stack([xs, ys, np.ones(len(xs))]).astype(np.float64)  # (3, N)
+    q = (H_R @ np.linalg.inv(H_L)) @ p  # (heights, 3, N)
+    map_x = (q[:, 0] / q[:, 2]).astype(np.float32)
+    map_y = (q[:, 1] / q[:, 2]).astype(np.float32)
+    b = cv2.remap(right, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT).astype(np.float64)
+    sb = b.std(axis=1)
+    ncc = np.where(sb > 0, (b - b.mean(axis=1, keepdims=True)) @ a / np.maximum(sb, 1e-12), 0.0)
+    return Sweep(heights, ncc)
+
+
+def on_plane(Q: ArrayLike, px: ArrayLike, desk_plane: ArrayLike, height: float) -> NDArray[np.float64]:
+    """Pixels back-projected onto the plane parallel to the desk at ``height`` above it.
+
+    Parameters
+    ----------
+    Q : array_like, shape (3, 4)
+        World → ideal pixel projection of the camera that saw ``px``.
+    px : array_like, shape (N, 2)
+    desk_plane : array_like, shape (4,)
+        ``[nx, ny, nz, d]``, n·X + d = 0, n up, world.
+    height : float
+        Metres above the desk.
+
+    Returns
+    -------
+    ndarray, shape (N, 3) — world points, metres.
+    """
+    on_desk, n, e1, e2 = _plane_frame(desk_plane)
+    origin = on_desk + height * n
+    uv1 = np.linalg.solve(plane_homography(Q, origin, e1, e2),
+                          np.column_stack([np.asarray(px, dtype=np.float64), np.ones(len(px))]).T)
+    uv = (uv1[:2] / uv1[2]).T
+    return origin + uv[:, :1] * e1 + uv[:, 1:] * e2
+
+
+def _plane_frame(desk_plane: ArrayLike) -> tuple[NDArray[np.float64], ...]:
+    """The desk's point nearest the origin, its unit normal (up) and two unit directions in it."""
+    plane = np.asarray(desk_plane, dtype=np.float64)
+    n = plane[:3] / np.linalg.norm(plane[:3])
+    on_desk = -plane[3] * plane[:3] / (plane[:3] @ plane[:3])
+    e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    return on_desk, n, e1, np.cross(n, e1)
+
+
+def texture_height(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: ArrayLike,
+                   Q_R: ArrayLike, quad_left: ArrayLike, desk_plane: ArrayLike,
+                   corner_height: float, cfg: SweepConfig = SweepConfig()) -> tuple[Sweep | None, float]:
+    """Sweep coarsely over the whole height range, then finely near the best and at the
+    corners' height; the sweep (None: no texture to test) and the NCC at ``corner_height``.
+
+    Parameters
+    ----------
+    corner_height : float
+        The cover's height above the desk from its triangulated corners, metres.
+    """
+    coarse = np.arange(cfg.min_height, cfg.max_height + 1e-9, cfg.coarse_step)
+    first = sweep_heights(left, right, Q_L, Q_R, quad_left, desk_plane, coarse, inset=cfg.inset,
+                          max_samples=cfg.max_samples)
+    if first is None:
+        return None, 0.0
+    best = first.best_height
+    fine = np.arange(best - cfg.coarse_step, best + cfg.coarse_step + 1e-9, cfg.step)
+    fine = fine[(fine >= cfg.min_height) & (fine <= cfg.max_height)]
+    at = np.clip(corner_height, cfg.min_height, cfg.max_height)
+    extra = sweep_heights(left, right, Q_L, Q_R, quad_left, desk_plane, np.append(fine, at),
+                          inset=cfg.inset, max_samples=cfg.max_samples)
+    assert extra is not None  # the same quad and image as the first sweep
+    heights = np.concatenate([first.heights, extra.heights[:-1]])
+    ncc = np.concatenate([first.ncc, extra.ncc[:-1]])
+    order = np.argsort(heights, kind="stable")
+    return Sweep(heights[order], ncc[order]), float(extra.ncc[-1])
+
+
+def contradicts(sweep: Sweep | None, ncc_at_corners: float, cfg: SweepConfig = SweepConfig()) -> bool:
+    """True when the cover's texture clearly puts it at another height than its corners."""
+    return (sweep is not None and sweep.best_ncc >= cfg.min_ncc
+            and sweep.best_ncc - ncc_at_corners > cfg.max_gap)
+
+
+__all__ = ["SweepConfig", "Sweep", "high_pass", "on_plane", "plane_homography", "sweep_heights",
+           "texture_height", "contradicts"]

@@ -1,0 +1,104 @@
+"""A cover's height from its print (rovis.sweep) and what the pipeline does with it."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from rovis import geometry
+from rovis.pipeline import DetectConfig, Detector, Pair, with_settings
+from rovis.sweep import SweepConfig, high_pass, on_plane, contradicts, texture_height
+from rovis.synth import render, sample_scene
+
+
+@pytest.fixture(scope="module")
+def scene():
+    sc = sample_scene(11, lux=500.0)
+    r = render(sc, 11)  # seeded sensor noise: the same pair every run
+    det = Detector(sc.rig)
+    ideal = {cam: cv2.remap(img, *det._maps[cam], cv2.INTER_LINEAR)
+             for cam, img in (("left", r.left), ("right", r.right))}
+    return sc, r, ideal
+
+
+def _book(r, cover):
+    return next(b for b in r.truth["books"] if b["cover"] == cover and b["visible_left"] > 0.99)
+
+
+def test_the_print_of_a_cover_gives_its_height(scene):
+    sc, r, ideal = scene
+    rig = sc.rig
+    b = _book(r, "photo")
+    quad = geometry.project(rig.Q_L, np.array(b["corners"]))
+    texture = {cam: high_pass(img, 1.5) for cam, img in ideal.items()}
+    sweep, at = texture_height(texture["left"], texture["right"], rig.Q_L, rig.Q_R, quad,
+                               r.truth["desk_plane"], b["size"][2] + 0.03)
+    assert sweep is not None
+    assert abs(sweep.best_height - b["size"][2]) < 0.002  # metres
+    assert sweep.best_ncc > 0.9
+    assert contradicts(sweep, at)  # 3 cm off: the print says so
+
+
+def test_a_plain_cover_testifies_to_nothing(scene):
+    sc, r, ideal = scene
+    rig = sc.rig
+    b = _book(r, "plain")
+    quad = geometry.project(rig.Q_L, np.array(b["corners"]))
+    texture = {cam: high_pass(img, 1.5) for cam, img in ideal.items()}
+    sweep, at = texture_height(texture["left"], texture["right"], rig.Q_L, rig.Q_R, quad,
+                               r.truth["desk_plane"], b["size"][2] + 0.03)
+    assert not contradicts(sweep, at)
+
+
+def test_pixels_laid_on_a_plane_project_back_to_themselves(rig):
+    desk = np.array([0.02, -0.05, 1.0, -0.01])
+    desk /= np.linalg.norm(desk[:3])
+    px = np.array([[300.0, 200.0], [700.5, 420.25], [512.0, 384.0]])
+    P = on_plane(rig.Q_L, px, desk, 0.037)
+    np.testing.assert_allclose(geometry.plane_distance(desk, P), 0.037, atol=1e-9)
+    np.testing.assert_allclose(geometry.project(rig.Q_L, P), px, atol=1e-6)
+
+
+def _shifted_pair(rig, b, shift_px):
+    """The book's cover in both ideal images, the left one moved along the epipolar lines:
+    a disparity error that moves the triangulated cover by centimetres."""
+    P = np.array(b["corners"])
+    left = geometry.project(rig.Q_L, P) + [shift_px, 0.0]
+    return Pair(left, geometry.project(rig.Q_R, P), 1.0, 0.0)
+
+
+@pytest.mark.parametrize("settings", [[], ["sweep.check=false"]])
+def test_a_cover_at_the_wrong_height_is_moved_to_its_print(scene, settings):
+    sc, r, ideal = scene
+    rig = sc.rig
+    b = _book(r, "photo")
+    det = Detector(rig, with_settings(DetectConfig(), settings))
+    desk = np.asarray(r.truth["desk_plane"], dtype=np.float64)
+    texture = ({cam: high_pass(img, 1.5) for cam, img in ideal.items()}
+               if det.cfg.sweep.check else None)
+    book, why = det._reconstruct_or_why(rig, _shifted_pair(rig, b, 2.0), desk, texture)
+    assert book is not None, why
+    error = abs(book.pose.size[2] - b["size"][2])
+    if det.cfg.sweep.check:
+        assert error < 0.002  # metres: moved to the print's height
+        assert np.linalg.norm(np.asarray(book.pose.center) - b["center"]) < 0.004
+    else:
+        assert error > 0.01  # what the corners alone say
+
+
+def test_a_weak_print_match_drops_the_cover_instead(scene):
+    sc, r, ideal = scene
+    rig = sc.rig
+    b = _book(r, "photo")
+    # a bar no print can reach: a cover the print contradicts is dropped, not moved
+    det = Detector(rig, with_settings(DetectConfig(), ["sweep.min_ncc_to_move=1.01"]))
+    texture = {cam: high_pass(img, 1.5) for cam, img in ideal.items()}
+    book, why = det._reconstruct_or_why(rig, _shifted_pair(rig, b, 2.0),
+                                        np.asarray(r.truth["desk_plane"]), texture)
+    assert book is None and why == "texture height"
+
+
+def test_sweep_settings_are_checked():
+    with pytest.raises(ValueError, match="sweep"):
+        SweepConfig(coarse_step=0.0)
