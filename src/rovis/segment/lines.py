@@ -194,18 +194,22 @@ def support_profile(lines: Lines, edges: NDArray[np.uint8], grad: Gradients | No
     y = lines.rho[:, None] * n[:, 1:] + (t_c[:, None] + t[None, :]) * d[:, 1:]
     xi, yi = np.rint(x).astype(np.intp), np.rint(y).astype(np.intp)
     inside = (xi >= 0) & (xi < w) & (yi >= 0) & (yi < h)
-    rows, xs, ys = np.nonzero(inside)[0], xi[inside], yi[inside]
-    hit_in = near[ys, xs] > 0
+    # Flat pixel index of every sample (0 outside the image, masked by ``inside``): one
+    # gather for all lines instead of compressing the samples first.
+    at = np.where(inside, yi * w + xi, 0)
+    hit = (near.ravel()[at] > 0) & inside
     if grad is not None:
-        gx, gy = grad.dx[ys, xs].astype(np.float64), grad.dy[ys, xs].astype(np.float64)
+        # The alignment test only where there is an edge to align (a few % of the samples).
+        k = np.flatnonzero(hit)
+        rows, px = k // hit.shape[1], at.ravel()[k]
+        gx, gy = grad.dx.ravel()[px].astype(np.float64), grad.dy.ravel()[px].astype(np.float64)
         across = np.abs(gx * n[rows, 0] + gy * n[rows, 1])
-        hit_in &= across >= np.cos(np.radians(max_angle_deg)) * np.hypot(gx, gy)
-    hit = np.zeros(x.shape, dtype=np.int32)
-    hit[inside] = hit_in
+        hit.ravel()[k] = across >= np.cos(np.radians(max_angle_deg)) * np.hypot(gx, gy)
     cum = np.zeros((len(lines), len(t) + 1), dtype=np.int32)
     np.cumsum(hit, axis=1, out=cum[:, 1:])
-    first = np.where(inside.any(axis=1), np.argmax(inside, axis=1), len(t))
-    last = np.where(inside.any(axis=1), len(t) - 1 - np.argmax(inside[:, ::-1], axis=1), -1)
+    any_in = inside.any(axis=1)
+    first = np.where(any_in, np.argmax(inside, axis=1), len(t))
+    last = np.where(any_in, len(t) - 1 - np.argmax(inside[:, ::-1], axis=1), -1)
     t_in = np.column_stack([t_c - half + first, t_c - half + last])
     return SupportProfile(cum, t_c - half, t_in)
 
