@@ -166,9 +166,14 @@ class SupportProfile:
              tb: NDArray[np.float64]) -> NDArray[np.float64]:
         """Edge hits between positions ``ta`` and ``tb`` (any order) on ``line`` (vectorised)."""
         last = self.cum.shape[1] - 1
-        lo = np.clip(np.rint(np.minimum(ta, tb) - self.t0[line]).astype(np.intp), 0, last)
-        hi = np.clip(np.rint(np.maximum(ta, tb) - self.t0[line]).astype(np.intp), 0, last)
-        return (self.cum[line, hi] - self.cum[line, lo]).astype(np.float64)
+        t0 = self.t0[line]
+        lo = np.rint(np.minimum(ta, tb) - t0).astype(np.intp)
+        hi = np.rint(np.maximum(ta, tb) - t0).astype(np.intp)
+        # flat indices into cum: cheaper than 2-D fancy indexing and np.clip's wrapper
+        row = line * self.cum.shape[1]
+        flat = self.cum.ravel()
+        return (flat[row + np.minimum(np.maximum(hi, 0), last)]
+                - flat[row + np.minimum(np.maximum(lo, 0), last)]).astype(np.float64)
 
 
 def support_profile(lines: Lines, edges: NDArray[np.uint8], grad: Gradients | None = None, *,

@@ -134,14 +134,19 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     keep = par[j, l]
     if not keep.any():
         return Quads.empty()
-    side_lines = np.column_stack([iu[p[keep]], j[keep], ku[p[keep]], l[keep]])  # side s on line [:, s]
-    # Each side runs on its line between the previous and the next side's intersections.
-    prev = np.roll(side_lines, 1, axis=1)
-    nxt = np.roll(side_lines, -1, axis=1)
-    ta, tb = T[side_lines, prev], T[side_lines, nxt]
+    # Side s of cycle i–j–k–l runs on line (i, j, k, l)[s], between its intersections with
+    # the previous and the next side's lines. The side lengths are checked on the index
+    # arrays first: most cycles fail here, before any (cycles, 4) array is built.
+    i, j, k, l = iu[p[keep]], j[keep], ku[p[keep]], l[keep]
+    flat_T = T.ravel()
+    ta4 = [flat_T[a * n + b] for a, b in ((i, l), (j, i), (k, j), (l, k))]  # T[side, prev]
+    tb4 = [flat_T[a * n + b] for a, b in ((i, j), (j, k), (k, l), (l, i))]  # T[side, next]
+    length4 = [np.abs(b - a) for a, b in zip(ta4, tb4)]
+    ok = ((_min4(length4) >= cfg.min_side_px) & (_max4(length4) <= cfg.max_side_px))
+    side_lines = np.column_stack([i[ok], j[ok], k[ok], l[ok]])  # side s on line [:, s]
+    ta = flat_T[side_lines * n + side_lines[:, [3, 0, 1, 2]]]  # the same values, survivors only
+    tb = flat_T[side_lines * n + side_lines[:, [1, 2, 3, 0]]]
     length = np.abs(tb - ta)
-    ok = (length.min(axis=1) >= cfg.min_side_px) & (length.max(axis=1) <= cfg.max_side_px)
-    side_lines, ta, tb, length = side_lines[ok], ta[ok], tb[ok], length[ok]
     trim = np.minimum(cfg.corner_trim_px, 0.25 * length)
     lo, hi = profile.visible(side_lines.ravel(), (np.minimum(ta, tb) + trim).ravel(),
                              (np.maximum(ta, tb) - trim).ravel())
@@ -149,8 +154,8 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     seen = np.maximum(hi - lo, 0.0)  # the part of each side inside the image
     hits = profile.hits(side_lines.ravel(), lo.ravel(), np.maximum(hi, lo).ravel()).reshape(-1, 4)
     support = hits / np.maximum(seen, 1.0)
-    ok = (support.min(axis=1) >= cfg.min_support) & \
-        (seen.min(axis=1) >= cfg.min_in_view * np.maximum(length - 2 * trim, 1.0).min(axis=1))
+    ok = (_min4(support.T) >= cfg.min_support) & \
+        (_min4(seen.T) >= cfg.min_in_view * _min4(np.maximum(length - 2 * trim, 1.0).T))
     side_lines, hits, support = side_lines[ok], hits[ok], support[ok]
     if len(side_lines) > cfg.max_candidates:  # busy texture: keep the best-supported
         best = np.argsort(-hits.sum(axis=1), kind="stable")[:cfg.max_candidates]
@@ -178,6 +183,17 @@ def _pairs_within_rows(m: NDArray[np.bool_]) -> tuple[NDArray[np.intp], NDArray[
     return row[first], col[first], col[second]
 
 
+def _min4(c: NDArray[np.float64] | list[NDArray[np.float64]]) -> NDArray[np.float64]:
+    """Elementwise minimum of four arrays ``c[0..3]`` (a reduction along a short axis of
+    length 4 costs several times more in NumPy)."""
+    return np.minimum(np.minimum(c[0], c[1]), np.minimum(c[2], c[3]))
+
+
+def _max4(c: NDArray[np.float64] | list[NDArray[np.float64]]) -> NDArray[np.float64]:
+    """Elementwise maximum of four arrays ``c[0..3]``."""
+    return np.maximum(np.maximum(c[0], c[1]), np.maximum(c[2], c[3]))
+
+
 def _arm(profile: SupportProfile, line: NDArray[np.intp], t: NDArray[np.float64],
          cfg: QuadConfig) -> NDArray[np.bool_]:
     """Whether ``line`` carries edge pixels along ``arm_px`` on either side of position ``t``
@@ -187,13 +203,13 @@ def _arm(profile: SupportProfile, line: NDArray[np.intp], t: NDArray[np.float64]
         # A corner outside the image (a book cut by the frame) shows its arms from where
         # its lines enter the image; the sides' in-view share is checked later.
         t = np.clip(t, profile.t_in[line, 0], profile.t_in[line, 1])
-    found = np.zeros(len(line), bool)
     need = cfg.min_support * cfg.arm_px
-    for gap in (cfg.corner_trim_px, 0.5 * cfg.arm_gap_px, cfg.arm_gap_px):
-        after = profile.hits(line, t + gap, t + gap + cfg.arm_px)
-        before = profile.hits(line, t - gap - cfg.arm_px, t - gap)
-        found |= np.maximum(after, before) >= need
-    return found
+    gaps = (cfg.corner_trim_px, 0.5 * cfg.arm_gap_px, cfg.arm_gap_px)
+    # The six windows (after and before, at three gaps) in one vectorised look-up.
+    ta = np.concatenate([t + g for g in gaps] + [t - g - cfg.arm_px for g in gaps])
+    tb = np.concatenate([t + g + cfg.arm_px for g in gaps] + [t - g for g in gaps])
+    hits = profile.hits(np.tile(line, 2 * len(gaps)), ta, tb).reshape(2 * len(gaps), len(line))
+    return np.any(hits >= need, axis=0)
 
 
 def _intersections(lines: Lines) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -218,12 +234,15 @@ def _shoelace(c: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def _convex_with_angles(c: NDArray[np.float64], min_deg: float) -> NDArray[np.bool_]:
-    e_in = c - np.roll(c, 1, axis=1)  # edge arriving at each corner
-    e_out = np.roll(c, -1, axis=1) - c
-    z = e_in[..., 0] * e_out[..., 1] - e_in[..., 1] * e_out[..., 0]
+    e_in = c - c[:, [3, 0, 1, 2]]  # edge arriving at each corner
+    e_out = c[:, [1, 2, 3, 0]] - c
+    (ix, iy), (ox, oy) = np.moveaxis(e_in, -1, 0), np.moveaxis(e_out, -1, 0)
+    z = ix * oy - iy * ox
     convex = np.all(z > 0, axis=1) | np.all(z < 0, axis=1)
-    cosang = -np.sum(e_in * e_out, axis=-1) / (
-        np.linalg.norm(e_in, axis=-1) * np.linalg.norm(e_out, axis=-1) + 1e-12)
+    # the dot product and norms written out over x, y: what np.sum / np.linalg.norm
+    # compute along the last axis, without their per-call and short-axis overhead
+    cosang = -(ix * ox + iy * oy) / (
+        np.sqrt(ix * ix + iy * iy) * np.sqrt(ox * ox + oy * oy) + 1e-12)
     ang = np.degrees(np.arccos(np.clip(cosang, -1, 1)))
     return convex & np.all((ang >= min_deg) & (ang <= 180 - min_deg), axis=1)
 
