@@ -81,9 +81,13 @@ def hough_lines(edges: NDArray[np.uint8], min_votes: int, *, grad: Gradients | N
     if grad is None:
         found = [cv2.HoughLinesWithAccumulator(crop, RHO_STEP, THETA_STEP, threshold)]
     else:
-        ys, xs = np.nonzero(crop)
-        phi = np.arctan2(grad.dy[ys + y0, xs + x0].astype(np.float32),
-                         grad.dx[ys + y0, xs + x0].astype(np.float32)) % np.pi
+        # The edge pixels, row by row as np.nonzero gives them (cv2.findNonZero: ~4x faster),
+        # as flat indices into the full image and into the crop.
+        xy = cv2.findNonZero(crop).reshape(-1, 2).astype(np.intp)
+        at = (xy[:, 1] + y0) * grad.shape[1] + (xy[:, 0] + x0)
+        in_crop = xy[:, 1] * crop.shape[1] + xy[:, 0]
+        phi = np.arctan2(grad.dy.ravel()[at].astype(np.float32),
+                         grad.dx.ravel()[at].astype(np.float32)) % np.pi
         found = []
         width = np.pi / bins
         for b in range(bins):
@@ -94,8 +98,8 @@ def hough_lines(edges: NDArray[np.uint8], min_votes: int, *, grad: Gradients | N
             sel = off <= 0.5 * width + margin
             if not sel.any():
                 continue
-            part = np.zeros_like(crop)
-            part[ys[sel], xs[sel]] = 255
+            part = np.zeros(crop.shape, np.uint8)
+            part.ravel()[in_crop[sel]] = 255
             found.append(cv2.HoughLinesWithAccumulator(part, RHO_STEP, THETA_STEP, threshold,
                                                        min_theta=lo, max_theta=hi))
     found = [f.reshape(-1, 3) for f in found if f is not None and len(f)]
