@@ -268,11 +268,12 @@ class CoverSelection:
         # (small, big) pairs that may be cover and outline; the exact test only for those.
         maybe = (self.near & (shared >= 2) & (areas[:, None] < areas[None, :])
                  & (areas[:, None] >= cfg.nested_min_area * areas[None, :]))
-        self.covers_of: list[list[int]] = [[] for _ in range(len(quads))]  # outline -> covers
         small, big = np.nonzero(maybe)
-        nested = _inside_convex(quads.corners[small], quads.corners[big])
-        for s_, b_ in zip(small[nested], big[nested]):
-            self.covers_of[b_].append(int(s_))
+        nested = _inside_convex(quads.corners[small], _canonical(quads.corners)[big], ordered=True)
+        # An outline gives way while any cover nested in it exists, i.e. up to the highest
+        # T_HG among its covers (the lowest integer: it contains none).
+        self.cover_votes = np.full(len(quads), np.iinfo(np.int64).min, np.int64)
+        np.maximum.at(self.cover_votes, big[nested], group_votes[small[nested]])
         self.order = np.argsort(-quads.n_f, kind="stable")
         self._conflict: dict[tuple[int, int], bool] = {}
 
@@ -287,12 +288,11 @@ class CoverSelection:
     def at(self, T_HG: int) -> Quads:
         """The selected covers among the candidates that exist at ``T_HG``."""
         exists = self.votes >= T_HG
+        free = exists & ~(self.cover_votes >= T_HG)  # exists, and no cover nested in it does
         kept: list[int] = []
-        for q in self.order:
-            if not exists[q] or any(exists[c] for c in self.covers_of[q]):
-                continue
+        for q in self.order[free[self.order]].tolist():
             if not any(self._conflicts(q, p) for p in kept):
-                kept.append(int(q))
+                kept.append(q)
         return self.quads.take(np.asarray(kept, dtype=np.intp))
 
 
@@ -307,15 +307,18 @@ def _distinct(quads: Quads, tol_px: float) -> tuple[Quads, NDArray[np.int64]]:
         return quads, np.zeros(0, np.int64)
     order = np.argsort(-quads.n_f, kind="stable")
     flat = _canonical(quads.corners[order]).reshape(len(order), 8)
-    tree = cKDTree(flat)
+    # Candidates share corners (they are cycles of the same lines), which an 8-D tree with
+    # small leaves prunes poorly: big leaves measured fastest (identical results).
+    tree = cKDTree(flat, leafsize=256)
     group = np.full(len(order), -1, np.intp)  # the kept candidate each one joins
-    for a in range(len(order)):
-        if group[a] >= 0:
-            continue
+    a = 0
+    while a < len(order):
         group[a] = a  # no stronger kept candidate within reach: keep it, and let it claim
         near = np.asarray(tree.query_ball_point(flat[a], tol_px, p=np.inf), dtype=np.intp)
         near = near[group[near] < 0]  # ...the unclaimed within its reach (all weaker)
         group[near] = a
+        unclaimed = np.flatnonzero(group[a + 1:] < 0)  # the next candidate to keep
+        a = a + 1 + int(unclaimed[0]) if len(unclaimed) else len(order)
     kept = np.nonzero(group == np.arange(len(order)))[0]
     votes = np.zeros(len(order), np.int64)
     np.maximum.at(votes, group, quads.min_votes[order])
@@ -331,12 +334,13 @@ def _canonical(c: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def _inside_convex(inner: NDArray[np.float64], outer: NDArray[np.float64],
-                   tol: float = 2.0) -> NDArray[np.bool_]:
+                   tol: float = 2.0, *, ordered: bool = False) -> NDArray[np.bool_]:
     """For quad pairs (M, 4, 2): are all of ``inner``'s corners inside convex ``outer``
-    (within ``tol`` px)? Vectorised over the pairs."""
+    (within ``tol`` px)? Vectorised over the pairs. ``ordered``: ``outer`` is already in
+    :func:`_canonical` order (a caller with many pairs per quad orders each quad once)."""
     if len(inner) == 0:
         return np.zeros(0, bool)
-    o = _canonical(outer)  # clockwise on screen: inside is to the right of every edge
+    o = outer if ordered else _canonical(outer)  # clockwise on screen: inside is to the right of every edge
     edge = np.roll(o, -1, axis=1) - o  # (M, 4, 2)
     rel = inner[:, None, :, :] - o[:, :, None, :]  # (M, 4 edges, 4 points, 2)
     cross = edge[:, :, None, 0] * rel[..., 1] - edge[:, :, None, 1] * rel[..., 0]
