@@ -262,7 +262,7 @@ def refine_segment(grad: Gradients, p_a: NDArray[np.float64], p_b: NDArray[np.fl
         rows = np.nonzero(interior)[0]
         k = k[rows]
         g0, g1, g2 = g[rows, k - 1], g[rows, k], g[rows, k + 1]
-        strong = g1 > 0.5 * np.median(g1) if len(g1) else np.zeros(0, bool)
+        strong = g1 > 0.5 * _median(g1) if len(g1) else np.zeros(0, bool)
         denom = g0 - 2 * g1 + g2
         with np.errstate(divide="ignore", invalid="ignore"):
             delta = np.where(denom < 0, 0.5 * (g0 - g2) / denom, 0.0)
@@ -291,11 +291,23 @@ def _fit_line(pts: NDArray[np.float64], *, outlier_px: float = 1.0) -> tuple[NDA
         _, s, Vt = np.linalg.svd(pts - c, full_matrices=False)
         d = Vt[0]
         resid = np.abs((pts - c) @ np.array([-d[1], d[0]]))
-        inliers = resid < max(outlier_px, 2.5 * np.median(resid))
+        inliers = resid < max(outlier_px, 2.5 * _median(resid))
         if inliers.all() or inliers.sum() < 6:
             break
         pts = pts[inliers]
     return c, d
+
+
+def _median(a: NDArray[np.float64]) -> float:
+    """np.median of a non-empty 1-D array of finite numbers, by the same partition and
+    the same mean of the middle values, without np.median's overhead (~7x on the few
+    hundred values of a side; refinement takes several per side). ``+ 0.0``: np.median's
+    mean sums from +0.0, so its zero median is +0.0, never -0.0."""
+    k = len(a) // 2
+    if len(a) % 2:
+        return float(np.partition(a, k)[k] + 0.0)
+    part = np.partition(a, (k - 1, k))
+    return float((part[k - 1] + part[k]) / 2 + 0.0)
 
 
 def intersect(p1: NDArray[np.float64], d1: NDArray[np.float64], p2: NDArray[np.float64],
