@@ -111,7 +111,7 @@ def test_a_quad_with_a_side_on_the_desk_is_no_cover(lone_book, low, kept):
     quad[:2, 2] = 0.012
     quad[2:, 2] = low
     pair = Pair(geometry.project(Q["left"], quad), geometry.project(Q["right"], quad), 1.0, 0.0)
-    book, why = Detector(rig)._reconstruct_or_why(rig, pair, desk)
+    _, book, why = Detector(rig)._reconstruct_or_why(rig, pair, desk)
     assert (book is not None) == kept
     assert why == ("" if kept else "side on desk")
 
@@ -123,7 +123,7 @@ def test_a_cover_tilted_against_the_desk_is_dropped_and_says_so(lone_book, rise,
     quad = P.copy()
     quad[:2, 2] += rise
     pair = Pair(geometry.project(Q["left"], quad), geometry.project(Q["right"], quad), 1.0, 0.0)
-    book, why = Detector(rig)._reconstruct_or_why(rig, pair, desk)
+    _, book, why = Detector(rig)._reconstruct_or_why(rig, pair, desk)
     assert (book is not None) == kept
     assert why == ("" if kept else "tilted")
 
@@ -134,7 +134,7 @@ def test_a_cover_longer_than_any_book_is_dropped(lone_book, length, kept):
     P, Q, _, desk, rig = lone_book
     quad = _side_moved(P, 1, length - np.linalg.norm(P[1] - P[0]))
     pair = Pair(geometry.project(Q["left"], quad), geometry.project(Q["right"], quad), 1.0, 0.0)
-    book, why = Detector(rig)._reconstruct_or_why(rig, pair, desk)
+    _, book, why = Detector(rig)._reconstruct_or_why(rig, pair, desk)
     assert (book is not None) == kept
     assert why == ("" if kept else "too long")
     if kept:

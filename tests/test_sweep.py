@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import cv2
 import numpy as np
 import pytest
 
 from rovis import geometry
 from rovis.pipeline import DetectConfig, Detector, Pair, with_settings
-from rovis.sweep import SweepConfig, high_pass, on_plane, contradicts, texture_height
+from rovis.segment import gradients
+from rovis.sweep import SweepConfig, contradicts, high_pass, on_plane, sweep_heights, texture_height
 from rovis.synth import render, sample_scene
 
 
@@ -77,7 +80,7 @@ def test_a_cover_at_the_wrong_height_is_moved_to_its_print(scene, settings):
     desk = np.asarray(r.truth["desk_plane"], dtype=np.float64)
     texture = ({cam: high_pass(img, 1.5) for cam, img in ideal.items()}
                if det.cfg.sweep.check else None)
-    book, why = det._reconstruct_or_why(rig, _shifted_pair(rig, b, 2.0), desk, texture)
+    _, book, why = det._reconstruct_or_why(rig, _shifted_pair(rig, b, 2.0), desk, texture)
     assert book is not None, why
     error = abs(book.pose.size[2] - b["size"][2])
     if det.cfg.sweep.check:
@@ -94,11 +97,43 @@ def test_a_weak_print_match_drops_the_cover_instead(scene):
     # a bar no print can reach: a cover the print contradicts is dropped, not moved
     det = Detector(rig, with_settings(DetectConfig(), ["sweep.min_ncc_to_move=1.01"]))
     texture = {cam: high_pass(img, 1.5) for cam, img in ideal.items()}
-    book, why = det._reconstruct_or_why(rig, _shifted_pair(rig, b, 2.0),
+    _, book, why = det._reconstruct_or_why(rig, _shifted_pair(rig, b, 2.0),
                                         np.asarray(r.truth["desk_plane"]), texture)
     assert book is None and why == "texture height"
 
 
-def test_sweep_settings_are_checked():
+def test_the_extent_step_starts_from_the_moved_cover(scene):
+    # a cover moved to its print's height, one side cut 2 cm short: growing that side
+    # back must not return the cover to its corners' (wrong) height
+    sc, r, ideal = scene
+    rig = sc.rig
+    b = _book(r, "photo")
+    P = np.array(b["corners"], dtype=np.float64)
+    P[2:] += 0.02 * (P[1] - P[2]) / np.linalg.norm(P[1] - P[2])  # side P3-P4 moved in 2 cm
+    pair = Pair(geometry.project(rig.Q_L, P) + [2.0, 0.0], geometry.project(rig.Q_R, P), 1.0, 0.0)
+    det = Detector(rig)
+    desk = np.asarray(r.truth["desk_plane"], dtype=np.float64)
+    texture = {cam: high_pass(img, 1.5) for cam, img in ideal.items()}
+    moved, book, why = det._reconstruct_or_why(rig, pair, desk, texture)
+    assert book is not None, why
+    grads = {cam: gradients(img) for cam, img in ideal.items()}
+    segs = {cam: SimpleNamespace(T_H=None) for cam in ideal}  # the open loop's edge strength
+    [(_, grown)] = det._fit_extents(rig, segs, grads, [(moved, book)], desk, texture)
+    assert abs(grown.pose.size[2] - b["size"][2]) < 0.002  # metres
+    assert np.allclose(sorted(grown.pose.size[:2]), sorted(b["size"][:2]), atol=0.005)  # grown back
+
+
+def test_a_cover_the_right_image_does_not_show_gives_no_sweep(scene):
+    sc, r, ideal = scene
+    rig = sc.rig
+    texture = {cam: high_pass(img, 1.5) for cam, img in ideal.items()}
+    at_left_border = np.array([[2.0, 300.0], [60.0, 300.0], [60.0, 360.0], [2.0, 360.0]])
+    assert sweep_heights(texture["left"], texture["right"], rig.Q_L, rig.Q_R, at_left_border,
+                         r.truth["desk_plane"], np.arange(0.0, 0.1, 0.01)) is None
+
+
+@pytest.mark.parametrize("bad", [{"coarse_step": 0.0}, {"step": 0.01}, {"max_samples": 40000},
+                                 {"inset": 1.0}, {"max_height": -0.1}])
+def test_sweep_settings_are_checked(bad):
     with pytest.raises(ValueError, match="sweep"):
-        SweepConfig(coarse_step=0.0)
+        SweepConfig(**bad)

@@ -288,7 +288,7 @@ class Detector:
         # the print inside each cover, both images, for the height test (rovis.sweep)
         texture = ({cam: high_pass(ideal[cam], self.cfg.sweep.sigma_px) for cam in ideal}
                    if self.cfg.sweep.check and desk_plane is not None else None)
-        books = [(pair, *self._reconstruct_or_why(rig, pair, desk_plane, texture)) for pair in pairs]
+        books = [self._reconstruct_or_why(rig, pair, desk_plane, texture) for pair in pairs]
         lap("pose")
         if self.cfg.stereo.transfer and desk_plane is not None:
             # A matched pair that is no flat cover often pairs a cover in one image with its
@@ -298,8 +298,7 @@ class Detector:
             more = self._transfer(rig, segs, grads, ideal, kept, desk_plane)
             lap("stereo")
             pairs += more
-            books += [(pair, *self._reconstruct_or_why(rig, pair, desk_plane, texture))
-                      for pair in more]
+            books += [self._reconstruct_or_why(rig, pair, desk_plane, texture) for pair in more]
             lap("pose")
         found = [(pair, book) for pair, book, _ in books if book is not None]
         # a failed pair whose quad became a book through the one-image search is not lost
@@ -314,7 +313,7 @@ class Detector:
                             + ", ".join(f"{why}: {n}" for why, n in count.most_common()) + ")")
         # beyond the paper: each cover's sides moved to its edges, seen in both images
         if (self.cfg.extent.grow or self.cfg.extent.shrink) and desk_plane is not None:
-            found = self._fit_extents(rig, segs, grads, found, desk_plane)
+            found = self._fit_extents(rig, segs, grads, found, desk_plane, texture)
             lap("extent")
         objects = [replace(book, id=i) for i, (_, book) in enumerate(found)]
         return FrameResult(
@@ -407,11 +406,14 @@ class Detector:
 
     def _fit_extents(self, rig: StereoRig, segs: dict[str, Segmentation],
                      grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
-                     desk_plane: NDArray[np.float64]) -> list[tuple[Pair, BookDetection]]:
+                     desk_plane: NDArray[np.float64],
+                     texture: dict[str, NDArray[np.float32]] | None = None,
+                     ) -> list[tuple[Pair, BookDetection]]:
         """Books whose cover stops at a printed line or reaches beyond its end, with their
         sides moved to the cover's edges (:mod:`rovis.extent`; the moved cover must pass the
-        pose checks again, e.g. its size). A book overlapping a moved cover (its other part)
-        gives way to it. The moved cover keeps its pair's ``quality`` and ``error_px``."""
+        pose checks again, e.g. its size, and its print's height test). A book overlapping a
+        moved cover (its other part) gives way to it. The moved cover keeps its pair's
+        ``quality`` and ``error_px``."""
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         strength = {cam: CANNY_LOW_RATIO * (segs[cam].T_H or self.cfg.segment.open_T_H)
                     for cam in Q}
@@ -423,7 +425,7 @@ class Detector:
                 shift = int(np.argmin(new["left"].sum(axis=1)))  # eq. 1 order in the left image
                 bigger = replace(pair, left=np.roll(new["left"], -shift, axis=0),
                                  right=np.roll(new["right"], -shift, axis=0))
-                fitted = self._reconstruct(rig, bigger, desk_plane)
+                bigger, fitted, _ = self._reconstruct_or_why(rig, bigger, desk_plane, texture)
                 if fitted is not None:
                     pair, book = bigger, fitted
                     moved.append(len(out))
@@ -437,10 +439,6 @@ class Detector:
                         out[i][0].left, out[k][0].left) > self.cfg.stereo.transfer_max_overlap:
                     drop.add(k)
         return [item for k, item in enumerate(out) if k not in drop]
-
-    def _reconstruct(self, rig: StereoRig, pair: Pair,
-                     desk_plane: NDArray[np.float64] | None) -> BookDetection | None:
-        return self._reconstruct_or_why(rig, pair, desk_plane)[0]
 
     def _pose_fails(self, pose: geometry.BookPose, P: NDArray[np.float64],
                     desk_plane: NDArray[np.float64] | None, pair: Pair) -> str:
@@ -485,26 +483,31 @@ class Detector:
     def _reconstruct_or_why(self, rig: StereoRig, pair: Pair,
                             desk_plane: NDArray[np.float64] | None,
                             texture: dict[str, NDArray[np.float32]] | None = None,
-                            ) -> tuple[BookDetection | None, str]:
-        """The book a pair of quads makes, or None and the check it failed (one of
-        :data:`DROP_REASONS`). ``texture``: both ideal images high-passed
-        (:func:`rovis.sweep.high_pass`), for the height test of the cover's print."""
+                            ) -> tuple[Pair, BookDetection | None, str]:
+        """The pair, the book it makes, or None and the check it failed (one of
+        :data:`DROP_REASONS`).
+
+        ``texture``: both ideal images high-passed (:func:`rovis.sweep.high_pass`), for the
+        height test of the cover's print. A cover the print moves comes back with a new
+        pair: its corners in both images are the moved cover's, projected (so the later
+        steps, e.g. :mod:`rovis.extent`, start from the cover where it is).
+        """
         c_left, c_right = pair.left, pair.right
         P = geometry.triangulate(rig.Q_L, rig.Q_R, c_left, c_right, method=self.cfg.triangulation)
         if not np.all(np.isfinite(P)):
-            return None, "degenerate"
+            return pair, None, "degenerate"
         if self.cfg.fit_rectangle:
             try:
                 P = geometry.fit_rectangle(rig.Q_L, rig.Q_R, c_left, c_right, P)
             except ValueError:
-                return None, "degenerate"
+                return pair, None, "degenerate"
         try:
             pose = geometry.pose_from_corners(P, desk_plane)
         except ValueError:
-            return None, "degenerate"
+            return pair, None, "degenerate"
         why = self._pose_fails(pose, P, desk_plane, pair)
         if why:
-            return None, why
+            return pair, None, why
         if texture is not None and desk_plane is not None:
             # the cover's print against its corners' height (rovis.sweep)
             sweep, at_corners = texture_height(texture["left"], texture["right"], rig.Q_L,
@@ -514,15 +517,21 @@ class Detector:
                 assert sweep is not None
                 P = self._on_plane(rig, c_left, c_right, desk_plane, sweep)
                 if P is None:
-                    return None, "texture height"
-                pose = geometry.pose_from_corners(P, desk_plane)
+                    return pair, None, "texture height"
+                pair = replace(pair, left=geometry.project(rig.Q_L, P),
+                               right=geometry.project(rig.Q_R, P))
+                c_left, c_right = pair.left, pair.right
+                try:
+                    pose = geometry.pose_from_corners(P, desk_plane)
+                except ValueError:
+                    return pair, None, "degenerate"
                 why = self._pose_fails(pose, P, desk_plane, pair)  # e.g. a print on the desk
                 if why:
-                    return None, why
+                    return pair, None, why
         reproj = np.concatenate([
             np.linalg.norm(geometry.project(rig.Q_L, P) - c_left, axis=1),
             np.linalg.norm(geometry.project(rig.Q_R, P) - c_right, axis=1)])
-        return BookDetection(
+        return pair, BookDetection(
             id=0, pose=pose, corners_world=P,
             corners_left_px=rig.distort_points(c_left, "left"),
             corners_right_px=rig.distort_points(c_right, "right"),

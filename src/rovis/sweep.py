@@ -12,8 +12,10 @@ desk at height h, the right image maps into the left by that plane's homography;
 cover the two agree best at the cover's true height. :func:`sweep_heights` scores heights
 by the normalised cross-correlation (NCC) of the high-passed left image inside the cover
 (inset from its sides, which may be wrong) and the right image warped through each plane.
-A cover whose texture matches clearly better at another height than its corners' is not
-one cover seen in both images: the pipeline drops it (reason ``"texture height"``).
+A cover whose texture matches clearly better at another height than its corners' is moved
+there by the pipeline when the match is near perfect (one flat surface), and dropped
+otherwise (reason ``"texture height"``): a weaker match is a quad over more than one
+surface.
 
 A plain cover has no texture to match: its best NCC stays low and it testifies to nothing.
 """
@@ -34,10 +36,12 @@ class SweepConfig:
     ``check`` turns it on; ``sigma_px``: the high-pass removes shading smoother than this
     Gaussian (pixels), leaving the print; heights from ``min_height`` to ``max_height``
     above the desk are tried every ``coarse_step``, then every ``step`` near the best;
-    ``inset``: the fraction of the cover's smaller image side kept clear of its sides;
+    ``inset``: the cover is shrunk by this fraction of its smaller image side (half of it
+    from each side) before comparing;
     ``max_samples``: the most left pixels compared;
-    the texture testifies when its best NCC reaches ``min_ncc`` and beats the NCC at the
-    corners' height by more than ``max_gap``. The cover is then moved to the texture's
+    the texture contradicts the corners when its best NCC reaches ``min_ncc`` and beats the
+    NCC at the corners' height by more than ``min_gap`` (corners outside the swept range:
+    no evidence). The cover is then moved to the texture's
     height if its best NCC reaches ``min_ncc_to_move`` (one flat surface) and both images'
     quads, laid on that plane, agree within ``max_spread`` at every corner; otherwise it is
     dropped.
@@ -52,16 +56,19 @@ class SweepConfig:
     inset: float = 0.1
     max_samples: int = 2000
     min_ncc: float = 0.3
-    max_gap: float = 0.1
+    min_gap: float = 0.1
     min_ncc_to_move: float = 0.85
     max_spread: float = 0.015
 
     def __post_init__(self) -> None:
-        if not (self.sigma_px > 0 and self.coarse_step > 0 and self.step > 0
-                and self.max_height > self.min_height and self.max_samples >= 50):
-            raise ValueError("sweep: sigma_px, coarse_step and step must be positive, "
-                             "max_height above min_height and max_samples at least 50, got "
-                             f"{self}")
+        # (cv2.remap takes maps of at most 32767 columns and rows)
+        n_coarse = (self.max_height - self.min_height) / self.coarse_step if self.coarse_step > 0 else 0
+        if not (self.sigma_px > 0 and 0 < self.step <= self.coarse_step
+                and self.max_height > self.min_height and 50 <= self.max_samples < 32767
+                and n_coarse < 32000 and 0 <= self.inset < 1):
+            raise ValueError("sweep: sigma_px must be positive, 0 < step <= coarse_step, "
+                             "max_height above min_height by fewer than 32000 coarse steps, "
+                             f"50 <= max_samples < 32767 and 0 <= inset < 1, got {self}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,7 +77,7 @@ class Sweep:
 
     Attributes
     ----------
-    heights : ndarray, shape (H,), metres, increasing
+    heights : ndarray, shape (H,), metres, in increasing order (a height may repeat)
     ncc : ndarray, shape (H,), in [-1, 1]
     """
 
@@ -126,7 +133,8 @@ def sweep_heights(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Ar
     heights : array_like, shape (H,)
         Metres above the desk.
     inset : float
-        Fraction of the quad's smaller side (in pixels) kept clear of its sides.
+        The quad is shrunk by this fraction of its smaller side (pixels), half of it from
+        each side.
     max_samples : int
         Left pixels compared at most (an even subsample of the cover): the cost per
         height stays small whatever the cover's size.
@@ -134,9 +142,12 @@ def sweep_heights(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Ar
     Returns
     -------
     Sweep or None
-        None when the cover is too small or outside the image, or has no texture at all.
+        None when the cover is too small or outside the image, has no texture at all, or
+        falls outside the right image at some height.
     """
     quad = np.asarray(quad_left, dtype=np.float64)
+    if quad.shape != (4, 2):
+        raise ValueError(f"quad_left: expected shape (4, 2), got {quad.shape}")
     h_img, w_img = left.shape
     x0, y0 = np.maximum(np.floor(quad.min(axis=0)).astype(int), 0)
     x1, y1 = np.minimum(np.ceil(quad.max(axis=0)).astype(int) + 1, [w_img, h_img])
@@ -169,6 +180,15 @@ def sweep_heights(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Ar
     q = (H_R @ np.linalg.inv(H_L)) @ p  # (heights, 3, N)
     map_x = (q[:, 0] / q[:, 2]).astype(np.float32)
     map_y = (q[:, 1] / q[:, 2]).astype(np.float32)
+    # only the pixels seen in the right image at every height (the border is no texture)
+    seen = np.all((map_x >= 0) & (map_x <= w_img - 1) & (map_y >= 0) & (map_y <= h_img - 1), axis=0)
+    if seen.sum() < 0.9 * len(xs):
+        return None
+    if not seen.all():
+        a, map_x, map_y = left[ys[seen], xs[seen]].astype(np.float64), map_x[:, seen], map_y[:, seen]
+        if a.std() <= 0:
+            return None
+        a = (a - a.mean()) / (a.std() * a.size)
     b = cv2.remap(right, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT).astype(np.float64)
     sb = b.std(axis=1)
     ncc = np.where(sb > 0, (b - b.mean(axis=1, keepdims=True)) @ a / np.maximum(sb, 1e-12), 0.0)
@@ -219,7 +239,8 @@ def texture_height(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: A
     Parameters
     ----------
     corner_height : float
-        The cover's height above the desk from its triangulated corners, metres.
+        The cover's height above the desk from its triangulated corners, metres. Outside
+        the swept range the NCC there is NaN: no evidence either way.
     """
     coarse = np.arange(cfg.min_height, cfg.max_height + 1e-9, cfg.coarse_step)
     first = sweep_heights(left, right, Q_L, Q_R, quad_left, desk_plane, coarse, inset=cfg.inset,
@@ -229,20 +250,22 @@ def texture_height(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: A
     best = first.best_height
     fine = np.arange(best - cfg.coarse_step, best + cfg.coarse_step + 1e-9, cfg.step)
     fine = fine[(fine >= cfg.min_height) & (fine <= cfg.max_height)]
-    at = np.clip(corner_height, cfg.min_height, cfg.max_height)
+    inside = cfg.min_height <= corner_height <= cfg.max_height
+    at = corner_height if inside else cfg.min_height
     extra = sweep_heights(left, right, Q_L, Q_R, quad_left, desk_plane, np.append(fine, at),
                           inset=cfg.inset, max_samples=cfg.max_samples)
-    assert extra is not None  # the same quad and image as the first sweep
+    if extra is None:  # (the fine heights lie within the coarse ones: not expected)
+        return first, float("nan")
     heights = np.concatenate([first.heights, extra.heights[:-1]])
     ncc = np.concatenate([first.ncc, extra.ncc[:-1]])
     order = np.argsort(heights, kind="stable")
-    return Sweep(heights[order], ncc[order]), float(extra.ncc[-1])
+    return Sweep(heights[order], ncc[order]), float(extra.ncc[-1]) if inside else float("nan")
 
 
 def contradicts(sweep: Sweep | None, ncc_at_corners: float, cfg: SweepConfig = SweepConfig()) -> bool:
     """True when the cover's texture clearly puts it at another height than its corners."""
     return (sweep is not None and sweep.best_ncc >= cfg.min_ncc
-            and sweep.best_ncc - ncc_at_corners > cfg.max_gap)
+            and sweep.best_ncc - ncc_at_corners > cfg.min_gap)  # False for NaN
 
 
 __all__ = ["SweepConfig", "Sweep", "high_pass", "on_plane", "plane_homography", "sweep_heights",
