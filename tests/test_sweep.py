@@ -22,21 +22,26 @@ def scene():
     det = Detector(sc.rig)
     ideal = {cam: cv2.remap(img, *det._maps[cam], cv2.INTER_LINEAR)
              for cam, img in (("left", r.left), ("right", r.right))}
-    return sc, r, ideal
+    texture = {cam: high_pass(img, 1.5) for cam, img in ideal.items()}  # as detect() makes it
+    return sc, r, ideal, texture
 
 
 def _book(r, cover):
     return next(b for b in r.truth["books"] if b["cover"] == cover and b["visible_left"] > 0.99)
 
 
+def _sweep_of(scene, cover, corner_height_error):
+    """The sweep of a book's true cover and the NCC at its true height plus an error."""
+    sc, r, _, texture = scene
+    b = _book(r, cover)
+    quad = geometry.project(sc.rig.Q_L, np.array(b["corners"]))
+    sweep, at = texture_height(texture["left"], texture["right"], sc.rig.Q_L, sc.rig.Q_R, quad,
+                               r.truth["desk_plane"], b["size"][2] + corner_height_error)
+    return b, sweep, at
+
+
 def test_the_print_of_a_cover_gives_its_height(scene):
-    sc, r, ideal = scene
-    rig = sc.rig
-    b = _book(r, "photo")
-    quad = geometry.project(rig.Q_L, np.array(b["corners"]))
-    texture = {cam: high_pass(img, 1.5) for cam, img in ideal.items()}
-    sweep, at = texture_height(texture["left"], texture["right"], rig.Q_L, rig.Q_R, quad,
-                               r.truth["desk_plane"], b["size"][2] + 0.03)
+    b, sweep, at = _sweep_of(scene, "photo", 0.03)
     assert sweep is not None
     assert abs(sweep.best_height - b["size"][2]) < 0.002  # metres
     assert sweep.best_ncc > 0.9
@@ -44,13 +49,7 @@ def test_the_print_of_a_cover_gives_its_height(scene):
 
 
 def test_a_plain_cover_testifies_to_nothing(scene):
-    sc, r, ideal = scene
-    rig = sc.rig
-    b = _book(r, "plain")
-    quad = geometry.project(rig.Q_L, np.array(b["corners"]))
-    texture = {cam: high_pass(img, 1.5) for cam, img in ideal.items()}
-    sweep, at = texture_height(texture["left"], texture["right"], rig.Q_L, rig.Q_R, quad,
-                               r.truth["desk_plane"], b["size"][2] + 0.03)
+    _, sweep, at = _sweep_of(scene, "plain", 0.03)
     assert not contradicts(sweep, at)
 
 
@@ -73,13 +72,12 @@ def _shifted_pair(rig, b, shift_px):
 
 @pytest.mark.parametrize("settings", [[], ["sweep.check=false"]])
 def test_a_cover_at_the_wrong_height_is_moved_to_its_print(scene, settings):
-    sc, r, ideal = scene
+    sc, r, ideal, texture = scene
     rig = sc.rig
     b = _book(r, "photo")
     det = Detector(rig, with_settings(DetectConfig(), settings))
     desk = np.asarray(r.truth["desk_plane"], dtype=np.float64)
-    texture = ({cam: high_pass(img, 1.5) for cam, img in ideal.items()}
-               if det.cfg.sweep.check else None)
+    texture = texture if det.cfg.sweep.check else None
     _, book, why = det._reconstruct_or_why(rig, _shifted_pair(rig, b, 2.0), desk, texture)
     assert book is not None, why
     error = abs(book.pose.size[2] - b["size"][2])
@@ -91,12 +89,11 @@ def test_a_cover_at_the_wrong_height_is_moved_to_its_print(scene, settings):
 
 
 def test_a_weak_print_match_drops_the_cover_instead(scene):
-    sc, r, ideal = scene
+    sc, r, ideal, texture = scene
     rig = sc.rig
     b = _book(r, "photo")
     # a bar no print can reach: a cover the print contradicts is dropped, not moved
     det = Detector(rig, with_settings(DetectConfig(), ["sweep.min_ncc_to_move=1.01"]))
-    texture = {cam: high_pass(img, 1.5) for cam, img in ideal.items()}
     _, book, why = det._reconstruct_or_why(rig, _shifted_pair(rig, b, 2.0),
                                         np.asarray(r.truth["desk_plane"]), texture)
     assert book is None and why == "texture height"
@@ -105,7 +102,7 @@ def test_a_weak_print_match_drops_the_cover_instead(scene):
 def test_the_extent_step_starts_from_the_moved_cover(scene):
     # a cover moved to its print's height, one side cut 2 cm short: growing that side
     # back must not return the cover to its corners' (wrong) height
-    sc, r, ideal = scene
+    sc, r, ideal, texture = scene
     rig = sc.rig
     b = _book(r, "photo")
     P = np.array(b["corners"], dtype=np.float64)
@@ -113,7 +110,6 @@ def test_the_extent_step_starts_from_the_moved_cover(scene):
     pair = Pair(geometry.project(rig.Q_L, P) + [2.0, 0.0], geometry.project(rig.Q_R, P), 1.0, 0.0)
     det = Detector(rig)
     desk = np.asarray(r.truth["desk_plane"], dtype=np.float64)
-    texture = {cam: high_pass(img, 1.5) for cam, img in ideal.items()}
     moved, book, why = det._reconstruct_or_why(rig, pair, desk, texture)
     assert book is not None, why
     grads = {cam: gradients(img) for cam, img in ideal.items()}
@@ -124,9 +120,8 @@ def test_the_extent_step_starts_from_the_moved_cover(scene):
 
 
 def test_a_cover_the_right_image_does_not_show_gives_no_sweep(scene):
-    sc, r, ideal = scene
+    sc, r, ideal, texture = scene
     rig = sc.rig
-    texture = {cam: high_pass(img, 1.5) for cam, img in ideal.items()}
     at_left_border = np.array([[2.0, 300.0], [60.0, 300.0], [60.0, 360.0], [2.0, 360.0]])
     assert sweep_heights(texture["left"], texture["right"], rig.Q_L, rig.Q_R, at_left_border,
                          r.truth["desk_plane"], np.arange(0.0, 0.1, 0.01)) is None
