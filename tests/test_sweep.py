@@ -11,7 +11,8 @@ import pytest
 from rovis import geometry
 from rovis.pipeline import DetectConfig, Detector, Pair, with_settings
 from rovis.segment import gradients
-from rovis.sweep import SweepConfig, contradicts, high_pass, on_plane, sweep_heights, texture_height
+from rovis.sweep import (SweepConfig, contradicts, find_by_print, high_pass, on_plane, sweep_heights,
+                         texture_height)
 from rovis.synth import render, sample_scene
 
 
@@ -127,8 +128,38 @@ def test_a_cover_the_right_image_does_not_show_gives_no_sweep(scene):
                          r.truth["desk_plane"], np.arange(0.0, 0.1, 0.01)) is None
 
 
+def _find_by_print(scene, P):
+    sc, r, _, texture = scene
+    rig = sc.rig
+    return find_by_print(texture["left"], texture["right"], rig.Q_L, rig.Q_R,
+                         geometry.project(rig.Q_L, P), r.truth["desk_plane"], 0.004)
+
+
+def test_a_printed_cover_seen_in_one_image_is_placed_in_the_other_by_its_print(scene):
+    sc, r, _, _ = scene
+    P = np.array(_book(r, "photo")["corners"])
+    found = _find_by_print(scene, P)
+    assert found is not None
+    # the print's height within 1 mm: ~0.1 px of disparity at this range
+    np.testing.assert_allclose(found, geometry.project(sc.rig.Q_R, P), atol=0.3)
+
+
+def test_a_plain_cover_is_not_placed_by_its_print(scene):
+    _, r, _, _ = scene
+    assert _find_by_print(scene, np.array(_book(r, "plain")["corners"])) is None
+
+
+def test_a_quad_stopping_inside_the_print_is_not_placed(scene):
+    # the photo cover cut 3 cm short: its print goes on beyond the cut, at the cover's height
+    _, r, _, _ = scene
+    P = np.array(_book(r, "photo")["corners"], dtype=np.float64)
+    P[2:] += 0.03 * (P[1] - P[2]) / np.linalg.norm(P[1] - P[2])
+    assert _find_by_print(scene, P) is None
+
+
 @pytest.mark.parametrize("bad", [{"coarse_step": 0.0}, {"step": 0.01}, {"max_samples": 40000},
-                                 {"inset": 1.0}, {"max_height": -0.1}])
+                                 {"inset": 1.0}, {"max_height": -0.1},
+                                 {"strip_px": (10.0, 3.0)}])
 def test_sweep_settings_are_checked(bad):
     with pytest.raises(ValueError, match="sweep"):
         SweepConfig(**bad)

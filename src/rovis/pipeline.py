@@ -31,7 +31,8 @@ from rovis.segment.edges import CANNY_LOW_RATIO, Gradients
 from rovis.segment.methods import METHODS, segment
 from rovis.segment.quads import quad_overlap
 from rovis.stereo import Match, StereoConfig, find_in_other_view, match_quads
-from rovis.sweep import Sweep, SweepConfig, contradicts, high_pass, on_plane, texture_height
+from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pass, on_plane,
+                         texture_height)
 
 
 # Why a stereo pair of quads makes no book (:meth:`Detector._reconstruct_or_why`): its
@@ -287,7 +288,8 @@ class Detector:
         lap("stereo")
         # the print inside each cover, both images, for the height test (rovis.sweep)
         texture = ({cam: high_pass(ideal[cam], self.cfg.sweep.sigma_px) for cam in ideal}
-                   if self.cfg.sweep.check and desk_plane is not None else None)
+                   if (self.cfg.sweep.check or self.cfg.sweep.transfer) and desk_plane is not None
+                   else None)
         books = [self._reconstruct_or_why(rig, pair, desk_plane, texture) for pair in pairs]
         lap("pose")
         if self.cfg.stereo.transfer and desk_plane is not None:
@@ -295,7 +297,7 @@ class Detector:
             # outline in the other: both quads are free again, for each to be looked for in
             # the other image on its own.
             kept = [mt for mt, (_, book, _) in zip(matches, books) if book is not None]
-            more = self._transfer(rig, segs, grads, ideal, kept, desk_plane)
+            more = self._transfer(rig, segs, grads, ideal, kept, desk_plane, texture)
             lap("stereo")
             pairs += more
             books += [self._reconstruct_or_why(rig, pair, desk_plane, texture) for pair in more]
@@ -371,8 +373,10 @@ class Detector:
 
     def _transfer(self, rig: StereoRig, segs: dict[str, Segmentation], grads: dict[str, Gradients],
                   ideal: dict[str, NDArray[np.uint8]], matches: list[Match],
-                  desk_plane: NDArray[np.float64]) -> list[Pair]:
-        """Covers found in one image only, looked for in the other (find_in_other_view)."""
+                  desk_plane: NDArray[np.float64],
+                  texture: dict[str, NDArray[np.float32]] | None = None) -> list[Pair]:
+        """Covers found in one image only, looked for in the other (find_in_other_view;
+        where that finds nothing, a printed cover by its print, :func:`rovis.sweep.find_by_print`)."""
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         used = {"left": {mt.left for mt in matches}, "right": {mt.right for mt in matches}}
         taken = {"left": [segs["left"].corners[k] for k in used["left"]],
@@ -393,6 +397,11 @@ class Detector:
             found = find_in_other_view(source, Q[src], Q[dst], desk_plane, grads[dst],
                                        CANNY_LOW_RATIO * T_H, gray_from=ideal[src],
                                        gray_to=ideal[dst], cfg=self.cfg.stereo)
+            if found is None and texture is not None and self.cfg.sweep.transfer:
+                # no edges to refit there: a printed cover is placed by its print alone
+                placed = find_by_print(texture[src], texture[dst], Q[src], Q[dst], source,
+                                       desk_plane, self.cfg.stereo.min_height, self.cfg.sweep)
+                found = None if placed is None else (placed,)
             if found is None or any(quad_overlap(found[0], q) > overlap for q in taken[dst]):
                 continue
             taken[src].append(source)
@@ -508,7 +517,7 @@ class Detector:
         why = self._pose_fails(pose, P, desk_plane, pair)
         if why:
             return pair, None, why
-        if texture is not None and desk_plane is not None:
+        if texture is not None and desk_plane is not None and self.cfg.sweep.check:
             # the cover's print against its corners' height (rovis.sweep)
             sweep, at_corners = texture_height(texture["left"], texture["right"], rig.Q_L,
                                                rig.Q_R, c_left, desk_plane, pose.size[2],

@@ -28,6 +28,8 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from rovis import geometry
+
 
 @dataclass(frozen=True)
 class SweepConfig:
@@ -45,6 +47,13 @@ class SweepConfig:
     height if its best NCC reaches ``min_ncc_to_move`` (one flat surface) and both images'
     quads, laid on that plane, agree within ``max_spread`` at every corner; otherwise it is
     dropped.
+
+    ``transfer``: a cover found in one image only, that the one-image search of
+    :mod:`rovis.stereo` cannot find in the other, is placed by its print
+    (:func:`find_by_print`): its best NCC must reach ``min_ncc_to_move`` and beat every
+    height ``peak_apart`` or more away by ``min_gap``, and the print must not go on beyond
+    any side: the strip ``strip_px`` pixels outside it must not match at the cover's
+    height (NCC ≥ ``strip_min_ncc``) better than on the desk by ``min_gap``.
     """
 
     check: bool = True
@@ -59,16 +68,22 @@ class SweepConfig:
     min_gap: float = 0.1
     min_ncc_to_move: float = 0.85
     max_spread: float = 0.015
+    transfer: bool = True
+    peak_apart: float = 0.02
+    strip_px: tuple[float, float] = (3.0, 10.0)
+    strip_min_ncc: float = 0.3
 
     def __post_init__(self) -> None:
         # (cv2.remap takes maps of at most 32767 columns and rows)
         n_coarse = (self.max_height - self.min_height) / self.coarse_step if self.coarse_step > 0 else 0
         if not (self.sigma_px > 0 and 0 < self.step <= self.coarse_step
                 and self.max_height > self.min_height and 50 <= self.max_samples < 32767
-                and n_coarse < 32000 and 0 <= self.inset < 1):
-            raise ValueError("sweep: sigma_px must be positive, 0 < step <= coarse_step, "
-                             "max_height above min_height by fewer than 32000 coarse steps, "
-                             f"50 <= max_samples < 32767 and 0 <= inset < 1, got {self}")
+                and n_coarse < 32000 and 0 <= self.inset < 1 and self.peak_apart > 0
+                and 0 <= self.strip_px[0] < self.strip_px[1]):
+            raise ValueError("sweep: sigma_px and peak_apart must be positive, 0 < step <= "
+                             "coarse_step, max_height above min_height by fewer than 32000 "
+                             "coarse steps, 50 <= max_samples < 32767, 0 <= inset < 1 and "
+                             f"0 <= strip_px[0] < strip_px[1], got {self}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -195,6 +210,73 @@ def sweep_heights(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Ar
     return Sweep(heights, ncc)
 
 
+def find_by_print(tex_src: NDArray[np.float32], tex_dst: NDArray[np.float32], Q_src: ArrayLike,
+                  Q_dst: ArrayLike, quad_src: ArrayLike, desk_plane: ArrayLike,
+                  min_height: float, cfg: SweepConfig = SweepConfig()) -> NDArray[np.float64] | None:
+    """A cover found in one image only, placed in the other by its print; None if its print
+    does not tell.
+
+    The cover's print, swept over the heights (:func:`texture_height`), must match nearly
+    perfectly at one height at least ``min_height`` above the desk, clearly better than
+    anywhere ``cfg.peak_apart`` away (a print repeating along the epipolar lines would
+    match at several). And the quad must be the whole cover: where one side is a print's
+    edge inside the cover (a title band, a printed block), the print goes on beyond it at
+    the cover's height, while beyond a cover's own edge lies the desk, a page block or
+    another book. So no strip just outside a side may match at the cover's height
+    (NCC ≥ ``cfg.strip_min_ncc``) better than on the desk by ``cfg.min_gap``.
+
+    Parameters
+    ----------
+    tex_src, tex_dst : ndarray, shape (H, W), float32
+        High-passed ideal images (:func:`high_pass`): the one the cover was found in, the other.
+    Q_src, Q_dst : array_like, shape (3, 4)
+        Their world → ideal pixel projections.
+    quad_src : array_like, shape (4, 2)
+        The cover in the source image, ideal pixels.
+    desk_plane : array_like, shape (4,)
+    min_height : float
+        Metres above the desk: a print on the desk (a sheet) is no cover.
+
+    Returns
+    -------
+    ndarray, shape (4, 2) or None
+        The cover's corners in the other image (same order), ideal pixels.
+    """
+    sweep, _ = texture_height(tex_src, tex_dst, Q_src, Q_dst, quad_src, desk_plane, float("nan"), cfg)
+    if sweep is None or sweep.best_ncc < cfg.min_ncc_to_move:
+        return None
+    h = sweep.best_height
+    apart = np.abs(sweep.heights - h) >= cfg.peak_apart
+    if h < min_height or (apart.any() and sweep.ncc[apart].max() > sweep.best_ncc - cfg.min_gap):
+        return None
+    for side in range(4):
+        ncc = side_strip_ncc(tex_src, tex_dst, Q_src, Q_dst, quad_src, desk_plane, [h, 0.0], side,
+                             near_px=cfg.strip_px[0], far_px=cfg.strip_px[1])
+        if ncc is not None and ncc[0] >= cfg.strip_min_ncc and ncc[0] - ncc[1] > cfg.min_gap:
+            return None  # the print goes on beyond this side, at the cover's height
+    return geometry.project(Q_dst, on_plane(Q_src, quad_src, desk_plane, h))
+
+
+def side_strip_ncc(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: ArrayLike,
+                   Q_R: ArrayLike, quad_left: ArrayLike, desk_plane: ArrayLike,
+                   heights: ArrayLike, side: int, *, near_px: float = 3.0, far_px: float = 10.0,
+                   trim: float = 0.15) -> NDArray[np.float64] | None:
+    """NCC per height (as :func:`sweep_heights`) of the strip just outside one side of the
+    quad: ``near_px`` to ``far_px`` beyond side ``side`` (corner ``side`` to the next), its
+    ends trimmed by ``trim`` of its length; shape (len(heights),), or None where the strip
+    gives no sweep (too small, no texture, out of view)."""
+    quad = np.asarray(quad_left, dtype=np.float64)
+    a, b = quad[side], quad[(side + 1) % 4]
+    d = b - a
+    n = np.array([d[1], -d[0]]) / max(float(np.linalg.norm(d)), 1e-9)
+    if n @ (0.5 * (a + b) - quad.mean(axis=0)) < 0:
+        n = -n
+    a, b = a + trim * d, b - trim * d
+    strip = np.array([a + near_px * n, b + near_px * n, b + far_px * n, a + far_px * n])
+    sweep = sweep_heights(left, right, Q_L, Q_R, strip, desk_plane, heights, inset=0.0)
+    return None if sweep is None else sweep.ncc
+
+
 def on_plane(Q: ArrayLike, px: ArrayLike, desk_plane: ArrayLike, height: float) -> NDArray[np.float64]:
     """Pixels back-projected onto the plane parallel to the desk at ``height`` above it.
 
@@ -268,5 +350,6 @@ def contradicts(sweep: Sweep | None, ncc_at_corners: float, cfg: SweepConfig = S
             and sweep.best_ncc - ncc_at_corners > cfg.min_gap)  # False for NaN
 
 
-__all__ = ["SweepConfig", "Sweep", "high_pass", "on_plane", "plane_homography", "sweep_heights",
+__all__ = ["SweepConfig", "Sweep", "find_by_print", "high_pass", "on_plane", "plane_homography",
+           "side_strip_ncc", "sweep_heights",
            "texture_height", "contradicts"]
