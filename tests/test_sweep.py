@@ -78,7 +78,6 @@ def test_a_cover_at_the_wrong_height_is_moved_to_its_print(scene, settings):
     b = _book(r, "photo")
     det = Detector(rig, with_settings(DetectConfig(), settings))
     desk = np.asarray(r.truth["desk_plane"], dtype=np.float64)
-    texture = texture if det.cfg.sweep.check else None
     _, book, why = det._reconstruct_or_why(rig, _shifted_pair(rig, b, 2.0), desk, texture)
     assert book is not None, why
     error = abs(book.pose.size[2] - b["size"][2])

@@ -77,8 +77,9 @@ class DetectConfig:
     segment, stereo, extent, sweep : SegmentConfig, StereoConfig, ExtentConfig, SweepConfig
         ``extent``: moving each cover's sides to its edges in both images
         (:mod:`rovis.extent`; beyond the paper; needs the desk plane). ``sweep``: each
-        cover's height tested against its print (:mod:`rovis.sweep`; beyond the paper;
-        needs the desk plane).
+        cover's height tested against its print, and a printed cover found in one image
+        only placed in the other by its print (:mod:`rovis.sweep`; beyond the paper; needs
+        the desk plane; the placing also ``stereo.transfer``).
     """
 
     method: str = "closed"

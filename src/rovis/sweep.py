@@ -18,6 +18,10 @@ otherwise (reason ``"texture height"``): a weaker match is a quad over more than
 surface.
 
 A plain cover has no texture to match: its best NCC stays low and it testifies to nothing.
+
+The same sweep places a printed cover that one image's segmentation found and the other's
+did not (:func:`find_by_print`), where the edge-based one-image search of
+:mod:`rovis.stereo` finds nothing to refit.
 """
 
 from __future__ import annotations
@@ -234,6 +238,7 @@ def find_by_print(tex_src: NDArray[np.float32], tex_dst: NDArray[np.float32], Q_
     quad_src : array_like, shape (4, 2)
         The cover in the source image, ideal pixels.
     desk_plane : array_like, shape (4,)
+        ``[nx, ny, nz, d]``, n·X + d = 0, n up, world.
     min_height : float
         Metres above the desk: a print on the desk (a sheet) is no cover.
 
@@ -261,10 +266,34 @@ def side_strip_ncc(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: A
                    Q_R: ArrayLike, quad_left: ArrayLike, desk_plane: ArrayLike,
                    heights: ArrayLike, side: int, *, near_px: float = 3.0, far_px: float = 10.0,
                    trim: float = 0.15) -> NDArray[np.float64] | None:
-    """NCC per height (as :func:`sweep_heights`) of the strip just outside one side of the
-    quad: ``near_px`` to ``far_px`` beyond side ``side`` (corner ``side`` to the next), its
-    ends trimmed by ``trim`` of its length; shape (len(heights),), or None where the strip
-    gives no sweep (too small, no texture, out of view)."""
+    """NCC per height of the strip just outside one side of a quad (:func:`sweep_heights`
+    on the strip).
+
+    Parameters
+    ----------
+    left, right : ndarray, shape (H, W), float32
+        High-passed ideal images: the one the quad is in, and the other.
+    Q_L, Q_R : array_like, shape (3, 4)
+        Their world → ideal pixel projections.
+    quad_left : array_like, shape (4, 2)
+        The quad, pixels of ``left``.
+    desk_plane : array_like, shape (4,)
+        ``[nx, ny, nz, d]``, n·X + d = 0, n up, world.
+    heights : array_like, shape (K,)
+        Metres above the desk.
+    side : int
+        The side from corner ``side`` to the next.
+    near_px, far_px : float
+        The strip lies this far beyond the side, pixels (the sampling erodes it by about a
+        pixel more).
+    trim : float
+        Fraction of the side's length left out at each end (the corners).
+
+    Returns
+    -------
+    ndarray, shape (K,), or None
+        None where the strip gives no sweep (too small, no texture, out of view).
+    """
     quad = np.asarray(quad_left, dtype=np.float64)
     a, b = quad[side], quad[(side + 1) % 4]
     d = b - a
