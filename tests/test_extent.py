@@ -141,6 +141,22 @@ def test_a_cover_longer_than_any_book_is_dropped(lone_book, length, kept):
         assert max(book.pose.size[:2]) == pytest.approx(length, abs=1e-3)
 
 
+@pytest.mark.parametrize("width, kept", [(0.08, True), (0.03, False)])
+def test_a_cover_narrower_than_any_book_is_dropped(lone_book, width, kept):
+    # e.g. a printed square of a chessboard, a label (no desk plane needed: the real chess
+    # pairs have none)
+    P, Q, _, _, rig = lone_book
+    sides = [np.linalg.norm(P[(k + 1) % 4] - P[k]) for k in range(4)]
+    short = int(np.argmin(sides[:2]))  # side 0 or 1; its neighbour side is moved
+    quad = _side_moved(P, short + 1, width - sides[short])
+    pair = Pair(geometry.project(Q["left"], quad), geometry.project(Q["right"], quad), 1.0, 0.0)
+    _, book, why = Detector(rig)._reconstruct_or_why(rig, pair, None)
+    assert (book is not None) == kept
+    assert why == ("" if kept else "too small")
+    if kept:
+        assert min(book.pose.size[:2]) == pytest.approx(width, abs=1e-3)
+
+
 @pytest.fixture(scope="module")
 def book_with_neighbour():
     """The lone book with a thicker, shorter one flush against its side 2 (P3–P4)."""

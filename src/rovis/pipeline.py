@@ -36,12 +36,14 @@ from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pa
 
 
 # Why a stereo pair of quads makes no book (:meth:`Detector._reconstruct_or_why`): its
-# corners do not triangulate to a quadrilateral; a side is longer than any book; the cover
+# corners do not triangulate to a quadrilateral; a side is longer than any book, or shorter
+# than any book's (a printed square, a label); the cover
 # is tilted against the desk; it stands below the desk (or, found in one image only, lower
 # than the search looked) or more than StereoConfig.max_height above it; a side lies on
 # the desk; its print matches between the images at another height than its corners
 # (rovis.sweep).
-DROP_REASONS = ("degenerate", "too long", "tilted", "height", "side on desk", "texture height")
+DROP_REASONS = ("degenerate", "too long", "too small", "tilted", "height", "side on desk",
+                "texture height")
 
 
 @dataclass(frozen=True)
@@ -68,6 +70,9 @@ class DetectConfig:
     max_cover_side : float
         Metres. A reconstructed cover longer than this is no book (an atlas is ~0.4 m): two
         books end to end, or a cover and a line beyond it.
+    min_cover_side : float
+        Metres. A reconstructed cover with a side shorter than this is no book (a pocket
+        book is ~0.1 × 0.075 m): a printed square, a label, a sticker.
     min_side_height : float
         Metres. A quad with a side whose midpoint is lower than this above the desk is
         dropped: that side is a line on the desk (a shadow's edge, a page block's foot).
@@ -94,6 +99,7 @@ class DetectConfig:
     max_tilt_deg: float = 6.0
     min_side_height: float = 0.002
     max_cover_side: float = 0.45
+    min_cover_side: float = 0.06
     fit_rectangle: bool = False
     segment: SegmentConfig = field(default_factory=SegmentConfig)
     stereo: StereoConfig = field(default_factory=StereoConfig)
@@ -455,6 +461,8 @@ class Detector:
         """The first pose check (:data:`DROP_REASONS`) the cover fails, or ``""``."""
         if max(pose.size[0], pose.size[1]) > self.cfg.max_cover_side:
             return "too long"  # two books end to end, or a cover and a line beyond it
+        if min(pose.size[0], pose.size[1]) < self.cfg.min_cover_side:
+            return "too small"  # a printed square, a label
         if desk_plane is None:
             return ""
         tilt = np.degrees(np.arccos(np.clip(pose.R[:, 2] @ desk_plane[:3], -1, 1)))
