@@ -150,11 +150,13 @@ def test_a_cover_narrower_than_any_book_is_dropped(lone_book, width, kept):
     short = int(np.argmin(sides[:2]))  # side 0 or 1; its neighbour side is moved
     quad = _side_moved(P, short + 1, width - sides[short])
     pair = Pair(geometry.project(Q["left"], quad), geometry.project(Q["right"], quad), 1.0, 0.0)
-    _, book, why = Detector(rig)._reconstruct_or_why(rig, pair, None)
-    assert (book is not None) == kept
-    assert why == ("" if kept else "too small")
-    if kept:
-        assert min(book.pose.size[:2]) == pytest.approx(width, abs=1e-3)
+    det = Detector(rig)
+    pair, book, why = det._reconstruct_or_why(rig, pair, None)
+    assert book is not None, why
+    assert min(book.pose.size[:2]) == pytest.approx(width, abs=1e-3)
+    found, small = det._without_small([(pair, book)])
+    assert len(found) == kept
+    assert [why for why, _, _ in small] == ([] if kept else ["too small"])
 
 
 @pytest.fixture(scope="module")

@@ -36,8 +36,8 @@ from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pa
 
 
 # Why a stereo pair of quads makes no book (:meth:`Detector._reconstruct_or_why`): its
-# corners do not triangulate to a quadrilateral; a side is longer than any book, or shorter
-# than any book's (a printed square, a label); the cover
+# corners do not triangulate to a quadrilateral; a side is longer than any book (or, after
+# the extent step, shorter than any book's: a printed square, a label); the cover
 # is tilted against the desk; it stands below the desk (or, found in one image only, lower
 # than the search looked) or more than StereoConfig.max_height above it; a side lies on
 # the desk; its print matches between the images at another height than its corners
@@ -71,8 +71,8 @@ class DetectConfig:
         Metres. A reconstructed cover longer than this is no book (an atlas is ~0.4 m): two
         books end to end, or a cover and a line beyond it.
     min_cover_side : float
-        Metres. A reconstructed cover with a side shorter than this is no book (a pocket
-        book is ~0.1 × 0.075 m): a printed square, a label, a sticker.
+        Metres. A cover with a side shorter than this once the extent step is done is no
+        book (a pocket book is ~0.1 × 0.075 m): a printed square, a label, a sticker.
     min_side_height : float
         Metres. A quad with a side whose midpoint is lower than this above the desk is
         dropped: that side is a line on the desk (a shadow's edge, a page block's foot).
@@ -324,6 +324,12 @@ class Detector:
         if (self.cfg.extent.grow or self.cfg.extent.shrink) and desk_plane is not None:
             found = self._fit_extents(rig, segs, grads, found, desk_plane, texture)
             lap("extent")
+        # last, since the extent step may grow a piece of a cover to the whole cover
+        found, small = self._without_small(found)
+        if small:
+            dropped += small
+            warnings.append(f"{len(small)} cover(s) narrower than {self.cfg.min_cover_side * 100:g} "
+                            "cm dropped: no book (a printed square, a label)")
         objects = [replace(book, id=i) for i, (_, book) in enumerate(found)]
         return FrameResult(
             objects=objects, desk_plane=None if desk_plane is None else desk_plane.copy(),
@@ -456,13 +462,24 @@ class Detector:
                     drop.add(k)
         return [item for k, item in enumerate(out) if k not in drop]
 
+    def _without_small(self, found: list[tuple[Pair, BookDetection]],
+                       ) -> tuple[list[tuple[Pair, BookDetection]],
+                                  list[tuple[str, NDArray[np.float64], NDArray[np.float64]]]]:
+        """The books with no side shorter than ``min_cover_side``, and the others as dropped
+        pairs (``"too small"``, left corners, right corners)."""
+        kept, small = [], []
+        for pair, book in found:
+            if min(book.pose.size[0], book.pose.size[1]) < self.cfg.min_cover_side:
+                small.append(("too small", pair.left, pair.right))
+            else:
+                kept.append((pair, book))
+        return kept, small
+
     def _pose_fails(self, pose: geometry.BookPose, P: NDArray[np.float64],
                     desk_plane: NDArray[np.float64] | None, pair: Pair) -> str:
         """The first pose check (:data:`DROP_REASONS`) the cover fails, or ``""``."""
         if max(pose.size[0], pose.size[1]) > self.cfg.max_cover_side:
             return "too long"  # two books end to end, or a cover and a line beyond it
-        if min(pose.size[0], pose.size[1]) < self.cfg.min_cover_side:
-            return "too small"  # a printed square, a label
         if desk_plane is None:
             return ""
         tilt = np.degrees(np.arccos(np.clip(pose.R[:, 2] @ desk_plane[:3], -1, 1)))
