@@ -181,10 +181,6 @@ def sweep_heights(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Ar
         return None
     keep = np.linspace(0, len(xs) - 1, min(len(xs), max_samples)).astype(np.intp)
     xs, ys = xs[keep] + x0, ys[keep] + y0
-    a = left[ys, xs].astype(np.float64)
-    if a.std() <= 0:
-        return None
-    a = (a - a.mean()) / (a.std() * a.size)
 
     # Each left pixel through each plane into the right image: a plane's homography to the
     # left pixels (H_L) and to the right (H_R) give right ← left = H_R · H_L⁻¹.
@@ -203,11 +199,11 @@ def sweep_heights(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Ar
     seen = np.all((map_x >= 0) & (map_x <= w_img - 1) & (map_y >= 0) & (map_y <= h_img - 1), axis=0)
     if seen.sum() < 0.9 * len(xs):
         return None
-    if not seen.all():
-        a, map_x, map_y = left[ys[seen], xs[seen]].astype(np.float64), map_x[:, seen], map_y[:, seen]
-        if a.std() <= 0:
-            return None
-        a = (a - a.mean()) / (a.std() * a.size)
+    a = left[ys[seen], xs[seen]].astype(np.float64)
+    if a.std() <= 0:
+        return None
+    a = (a - a.mean()) / (a.std() * a.size)
+    map_x, map_y = map_x[:, seen], map_y[:, seen]
     b = cv2.remap(right, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT).astype(np.float64)
     sb = b.std(axis=1)
     ncc = np.where(sb > 0, (b - b.mean(axis=1, keepdims=True)) @ a / np.maximum(sb, 1e-12), 0.0)
