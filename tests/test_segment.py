@@ -199,13 +199,43 @@ def test_covers_found_at_other_thresholds_join_where_the_optimum_found_none():
                                    square(300, 0),    # a book the higher T_H has: not added
                                    square(0, 300)])   # another book: added
     high = _evaluation(200.0, 0.015, [square(290, 10)])  # a book: added, before low's
-    got, sources = with_other_covers(best, [best, low, high], max_overlap=0.15)
+    got, sources, _ = with_other_covers(best, [best, low, high], max_overlap=0.15)
     assert sources == [high, low]
     # taken by decreasing y: the higher T_H's cover before the lower's overlapping one
     assert len(got.covers) == 3
     for quad, want in zip(got.covers.corners, (square(0, 0), square(290, 10), square(0, 300))):
         np.testing.assert_allclose(quad, want)
     assert (got.T_H, got.y) == (best.T_H, best.y)  # the optimum's thresholds and y stay
+
+
+def test_quads_other_thresholds_found_over_a_cover_are_its_alternatives():
+    # what another T_H made of the same book (its outline, its cover) is kept for stereo
+    from rovis.segment.control import with_other_covers
+    square = lambda x, y, s=100: [(x, y), (x + s, y), (x + s, y + s), (x, y + s)]  # noqa: E731
+    best = _evaluation(100.0, 0.02, [square(0, 0)])
+    low = _evaluation(50.0, 0.01, [square(0, 0, 130),  # the outline: an alternative
+                                   square(1, 1),       # within 3 px of the cover: not again
+                                   square(0, 300)])    # another book: a cover of its own
+    got, _, alternatives = with_other_covers(best, [best, low], max_overlap=0.15)
+    assert len(got.covers) == len(alternatives) == 2
+    np.testing.assert_allclose(alternatives[0], [square(0, 0, 130)])
+    assert alternatives[1].shape == (0, 4, 2)
+
+
+def test_the_candidates_a_cover_won_over_are_its_losers():
+    from rovis.segment.quads import CoverSelection, Quads
+    square = lambda x, y, s: [(x, y), (x + s, y), (x + s, y + s), (x, y + s)]  # noqa: E731
+    # a union of two touching books (most edge pixels) over one of them; a book apart
+    c = np.array([square(0, 0, 200), square(0, 0, 100), square(400, 0, 100)], np.float64)
+    lines = np.arange(12, dtype=np.intp).reshape(3, 4)
+    quads = Quads(lines, c, np.ones((3, 4)), np.array([800.0, 400.0, 400.0]),
+                  np.full(3, 40, np.int64))
+    selection = CoverSelection(quads)
+    np.testing.assert_allclose(selection.at(30).corners, c[[0, 2]])
+    losers = selection.losers(30)
+    np.testing.assert_allclose(losers[0], c[[1]])
+    assert losers[1].shape == (0, 4, 2)
+    assert [len(q) for q in selection.losers(50)] == []  # no candidate exists above its votes
 
 
 def test_the_union_can_be_switched_off():

@@ -29,7 +29,8 @@ from rovis.results import BookDetection, FrameResult, SegmentationInfo
 from rovis.segment import CascadeController, SegmentConfig, Segmentation, gradients
 from rovis.segment.edges import CANNY_LOW_RATIO, Gradients
 from rovis.segment.methods import METHODS, segment
-from rovis.segment.quads import quad_overlap
+from rovis.segment.boundary import refine_quad
+from rovis.segment.quads import order_corners, quad_overlap
 from rovis.stereo import Match, StereoConfig, find_in_other_view, match_quads
 from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pass, on_plane,
                          texture_height)
@@ -38,12 +39,15 @@ from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pa
 # Why a stereo pair of quads makes no book (:meth:`Detector._reconstruct_or_why`): its
 # corners do not triangulate to a quadrilateral; a side is longer than any book (or, after
 # the extent step, shorter than any book's: a printed square, a label); the cover
-# is tilted against the desk; it stands below the desk (or, found in one image only, lower
-# than the search looked) or more than StereoConfig.max_height above it; a side lies on
-# the desk; its print matches between the images at another height than its corners
-# (rovis.sweep).
+# is tilted against the desk; it stands below the desk (or, found in one image only or
+# among the alternatives, lower than any book) or more than StereoConfig.max_height above
+# it; a side lies on the desk; its print matches between the images at another height
+# than its corners (rovis.sweep).
 DROP_REASONS = ("degenerate", "too long", "too small", "tilted", "height", "side on desk",
                 "texture height")
+# The checks after which a pair is retried with the other quads the closed loop found over
+# it (Segmentation.alternatives): those an outline paired with a cover fails.
+ALTERNATIVE_REASONS = ("tilted", "side on desk", "height", "texture height")
 
 
 @dataclass(frozen=True)
@@ -189,6 +193,7 @@ class Pair:
     quality: float  # edge support of the segmented quad(s), 0-1
     error_px: float  # stereo match error (0 for a transferred cover)
     transferred: str | None = None
+    alternative: bool = False  # from Segmentation.alternatives, after the first pair failed
 
 
 class Detector:
@@ -298,6 +303,14 @@ class Detector:
                    if (self.cfg.sweep.check or self.cfg.sweep.transfer) and desk_plane is not None
                    else None)
         books = [self._reconstruct_or_why(rig, pair, desk_plane, texture) for pair in pairs]
+        if self.cfg.stereo.alternatives:
+            # beyond the paper: a pair that is no cover may be one with the other quads the
+            # closed loop found over it at other T_H
+            for i, (mt, (pair, book, why)) in enumerate(zip(matches, books)):
+                if book is None and why in ALTERNATIVE_REASONS:
+                    others = [p.left for p, b, _ in books if b is not None]
+                    books[i] = self._alternative(rig, segs, grads, ideal, mt, pair, why,
+                                                 desk_plane, texture, others)
         lap("pose")
         if self.cfg.stereo.transfer and desk_plane is not None:
             # A matched pair that is no flat cover often pairs a cover in one image with its
@@ -426,6 +439,54 @@ class Detector:
                             quality, 0.0, transferred=src))
         return out
 
+    def _alternative(self, rig: StereoRig, segs: dict[str, Segmentation],
+                     grads: dict[str, Gradients], ideal: dict[str, NDArray[np.uint8]],
+                     mt: Match, pair: Pair, why: str, desk_plane: NDArray[np.float64] | None,
+                     texture: dict[str, NDArray[np.float32]] | None,
+                     others: list[NDArray[np.float64]],
+                     ) -> tuple[Pair, BookDetection | None, str]:
+        """A matched pair that failed a pose check, retried with the other quads each
+        image's closed loop found over it (:attr:`Segmentation.alternatives`, refined):
+        of the pairs that match and pass every check, the one with the smallest stereo
+        error; the failed pair and its reason if none does."""
+        most = self.cfg.stereo.max_alternatives
+        quads: dict[str, list[NDArray[np.float64]]] = {}
+        for cam, k in (("left", mt.left), ("right", mt.right)):
+            alts = segs[cam].alternatives[k][:most] if k < len(segs[cam].alternatives) else ()
+            quads[cam] = [segs[cam].corners[k], *alts]
+        refined: dict[tuple[str, int], NDArray[np.float64]] = {}
+
+        def sub_pixel(cam: str, i: int) -> NDArray[np.float64]:
+            # refit once, when first paired (it costs milliseconds)
+            if i == 0:
+                return quads[cam][0]
+            if (cam, i) not in refined:
+                refined[cam, i] = order_corners(refine_quad(grads[cam], quads[cam][i]))
+            return refined[cam, i]
+
+        overlap = self.cfg.stereo.transfer_max_overlap
+        best: tuple[Pair, BookDetection | None, str] = (pair, None, why)
+        for i in range(len(quads["left"])):
+            if any(quad_overlap(quads["left"][i], q) > overlap for q in others):
+                continue
+            for j in range(len(quads["right"])):
+                if (i, j) == (0, 0):
+                    continue
+                left, right = sub_pixel("left", i), sub_pixel("right", j)
+                found = match_quads(left[None], right[None], rig.Q_L, rig.Q_R,
+                                    desk_plane=desk_plane, gray_left=ideal["left"],
+                                    gray_right=ideal["right"], cfg=self.cfg.stereo)
+                if not found or (best[1] is not None and found[0].error_px >= best[0].error_px):
+                    continue
+                trial = self._reconstruct_or_why(
+                    rig, Pair(left, found[0].corners_right, pair.quality, found[0].error_px,
+                              alternative=True),
+                    desk_plane, texture)
+                if trial[1] is not None and _tilt_deg(trial[1].pose, desk_plane) \
+                        <= self.cfg.stereo.alternative_max_tilt_deg:
+                    best = trial
+        return best
+
     def _fit_extents(self, rig: StereoRig, segs: dict[str, Segmentation],
                      grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
                      desk_plane: NDArray[np.float64],
@@ -482,12 +543,12 @@ class Detector:
             return "too long"  # two books end to end, or a cover and a line beyond it
         if desk_plane is None:
             return ""
-        tilt = np.degrees(np.arccos(np.clip(pose.R[:, 2] @ desk_plane[:3], -1, 1)))
-        if tilt > self.cfg.max_tilt_deg:
+        if _tilt_deg(pose, desk_plane) > self.cfg.max_tilt_deg:
             return "tilted"
-        # a cover found in one image only must stand as high as the search assumed: a
-        # flat pattern on the desk (a sheet, a seam rectangle) is no book
-        low = self.cfg.stereo.min_height if pair.transferred else 0.0
+        # a cover found in one image only (or among the alternatives) must stand as high
+        # as the search assumed: a flat pattern on the desk (a sheet, a seam rectangle)
+        # is no book
+        low = self.cfg.stereo.min_height if pair.transferred or pair.alternative else 0.0
         if not low < pose.size[2] <= self.cfg.stereo.max_height:
             return "height"
         # a side lying on the desk is a line on the desk (a shadow's edge, the page
@@ -572,6 +633,13 @@ class Detector:
             corners_right_px=rig.distort_points(c_right, "right"),
             reprojection_error_px=float(reproj.mean()),
             quality=pair.quality, stereo_error_px=pair.error_px), ""
+
+
+def _tilt_deg(pose: geometry.BookPose, desk_plane: NDArray[np.float64] | None) -> float:
+    """Degrees between a cover's normal and the desk's (0 without a desk plane)."""
+    if desk_plane is None:
+        return 0.0
+    return float(np.degrees(np.arccos(np.clip(pose.R[:, 2] @ desk_plane[:3], -1, 1))))
 
 
 def roi_mask(rig: StereoRig, camera: Literal["left", "right"], T_world_marker: NDArray[np.float64], *,

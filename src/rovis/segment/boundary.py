@@ -77,6 +77,7 @@ class Evaluation:
     lines: Lines  # the lines above T_HG, strongest first
     covers: Quads  # the selected cover candidates at T_HG
     inner_iterations: int
+    selection: CoverSelection | None = None  # for the candidates the covers won over
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,6 +98,10 @@ class Segmentation:
     T_H, T_HG, y : the thresholds used and the quality they reached (eq. 2)
     iterations : int
         Evaluations of the chain (outer × inner loop steps; 1 for the open loop).
+    alternatives : tuple of ndarray, shape (M_k, 4, 2) each, or ()
+        Per cover, the other quads the closed loop found over it at other T_H (Hough
+        corners, not refined): where the chosen one is no cover in 3D (an outline with its
+        page block, say), stereo may try these (beyond the paper).
     """
 
     corners: NDArray[np.float64]
@@ -107,6 +112,7 @@ class Segmentation:
     T_HG: int
     y: float
     iterations: int
+    alternatives: tuple[NDArray[np.float64], ...] = ()
 
     def __len__(self) -> int:
         return len(self.corners)
@@ -168,7 +174,8 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
         covers = selection.at(t)
         y = quality(n, covers.n_f, area, cfg.n_max, sign=cfg.quality_sign)
         if best is None or y > best.y:
-            best = Evaluation(T_H, t, y, lines.take(lines.votes >= t), covers, len(candidates))
+            best = Evaluation(T_H, t, y, lines.take(lines.votes >= t), covers, len(candidates),
+                              selection)
     assert best is not None
     _lap(timing, "quads", clock)
     return best
@@ -183,9 +190,11 @@ def _lap(timing: dict[str, float] | None, stage: str, since: float) -> float:
 
 
 def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
-           timing: dict[str, float] | None = None) -> Segmentation:
+           timing: dict[str, float] | None = None,
+           alternatives: tuple[NDArray[np.float64], ...] = ()) -> Segmentation:
     """Refine the chosen covers to sub-pixel corners and order them (eq. 1); ``timing``
-    accumulates the milliseconds under ``"refine"``."""
+    accumulates the milliseconds under ``"refine"``; ``alternatives``: per cover of ``ev``,
+    other quads over it (kept as they are)."""
     clock = time.perf_counter()
     if len(ev.covers) == 0:
         _lap(timing, "refine", clock)
@@ -197,7 +206,7 @@ def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
         coarse.append(order_corners(quad))
     _lap(timing, "refine", clock)
     return Segmentation(np.array(refined), np.array(coarse), ev.covers.support.mean(axis=1),
-                        ev.lines, ev.T_H, ev.T_HG, ev.y, iterations)
+                        ev.lines, ev.T_H, ev.T_HG, ev.y, iterations, alternatives)
 
 
 def refine_quad(grad: Gradients, corners: NDArray[np.float64], *,

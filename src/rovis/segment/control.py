@@ -17,7 +17,7 @@ import numpy as np
 
 from rovis.segment.boundary import Evaluation, SegmentConfig, Segmentation, evaluate, finish, roi_area
 from rovis.segment.edges import Gradients
-from rovis.segment.quads import Quads, quad_overlap
+from rovis.segment.quads import Quads, order_corners, quad_overlap
 
 
 class CascadeController:
@@ -64,10 +64,12 @@ class CascadeController:
             best = self._full_search(run)
         self.last_T_H = best.T_H if best.y > 0 else self.last_T_H
         iterations = sum(ev.inner_iterations for ev in seen.values())
+        alternatives: tuple[np.ndarray, ...] = ()
         if self.cfg.union and best.y > 0:
-            best, sources = with_other_covers(best, seen.values(), self.cfg.quads.max_overlap)
+            best, sources, alternatives = with_other_covers(best, seen.values(),
+                                                            self.cfg.quads.max_overlap)
             self.last_extra_T_H = sorted({ev.T_H for ev in sources})
-        return finish(grad, best, iterations, timing=timing)
+        return finish(grad, best, iterations, timing=timing, alternatives=alternatives)
 
     def _full_search(self, run) -> Evaluation:  # type: ignore[no-untyped-def]
         lo, hi = np.log(self.cfg.T_H_range[0]), np.log(self.cfg.T_H_range[1])
@@ -93,26 +95,46 @@ class CascadeController:
         return best
 
 
-def with_other_covers(best: Evaluation, evaluations: Iterable[Evaluation],
-                      max_overlap: float) -> tuple[Evaluation, list[Evaluation]]:
+def with_other_covers(best: Evaluation, evaluations: Iterable[Evaluation], max_overlap: float,
+                      ) -> tuple[Evaluation, list[Evaluation], tuple[np.ndarray, ...]]:
     """``best`` with the covers other evaluations (other T_H) found where it found none,
-    and the evaluations that gave them.
+    the evaluations that gave them, and per cover the other evaluations' quads over it.
 
     Beyond the paper: eq. 2 picks one T_H per image, but a faint book may show all its
     sides only at a lower T_H, and one on a busy background only at a higher. A cover of
     another evaluation is added when it overlaps no cover kept so far by more than
     ``max_overlap`` (of the smaller), taking the evaluations by decreasing y. The
     thresholds, y and lines stay the optimum's.
+
+    Each optimum cover's alternatives are the candidates it won over at the optimum's T_HG
+    (:meth:`CoverSelection.losers`: the union of two touching books wins over each of
+    them), then the other evaluations' covers that overlap it (at another T_H the same
+    book came out otherwise: its cover where the kept quad is its outline with the page
+    block, or the reverse), strongest evaluation first, near-duplicates (all corners
+    within 3 px) once. Stereo tries them when the cover fails a pose check.
     """
     kept = list(best.covers.corners)
+    # the candidates the optimum's covers won over at its T_HG, then the other T_H's covers
+    alts: list[list[np.ndarray]] = (
+        [list(map(order_corners, q)) for q in best.selection.losers(best.T_HG)]
+        if best.selection is not None else [[] for _ in kept])
     extra, sources = [], []
     for ev in sorted((e for e in evaluations if e is not best), key=lambda e: -e.y):
         for i, quad in enumerate(ev.covers.corners):
-            if all(quad_overlap(quad, k) <= max_overlap for k in kept):
+            over = [k for k, q in enumerate(kept) if quad_overlap(quad, q) > max_overlap]
+            if not over:
                 kept.append(quad)
+                alts.append([])
                 extra.append(ev.covers.take(np.array([i])))
                 if not sources or sources[-1] is not ev:
                     sources.append(ev)
+                continue
+            ordered = order_corners(quad)
+            for k in over:
+                if all(np.abs(ordered - order_corners(q)).max() > 3.0
+                       for q in [kept[k], *alts[k]]):
+                    alts[k].append(ordered)
+    alternatives = tuple(np.array(a).reshape(-1, 4, 2) for a in alts)
     if not extra:
-        return best, []
-    return replace(best, covers=Quads.concat([best.covers, *extra])), sources
+        return best, [], alternatives
+    return replace(best, covers=Quads.concat([best.covers, *extra])), sources, alternatives

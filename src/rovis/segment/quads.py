@@ -287,13 +287,29 @@ class CoverSelection:
 
     def at(self, T_HG: int) -> Quads:
         """The selected covers among the candidates that exist at ``T_HG``."""
+        return self.quads.take(np.asarray(self._kept(T_HG), dtype=np.intp))
+
+    def losers(self, T_HG: int, most: int = 4) -> list[NDArray[np.float64]]:
+        """Per cover selected at ``T_HG`` (in :meth:`at`'s order), the candidates that
+        exist there and gave way to it (an overlap, or a cover nested in an outline),
+        the most edge pixels first, at most ``most``: shape (M, 4, 2) each."""
+        exists = self.votes >= T_HG
+        out = []
+        for p in self._kept(T_HG):
+            near = np.flatnonzero(self.near[:, p] & exists)
+            near = near[np.argsort(-self.quads.n_f[near], kind="stable")]
+            lost = [q for q in near.tolist() if q != p and self._conflicts(q, p)][:most]
+            out.append(self.quads.corners[np.asarray(lost, dtype=np.intp)].reshape(-1, 4, 2))
+        return out
+
+    def _kept(self, T_HG: int) -> list[int]:
         exists = self.votes >= T_HG
         free = exists & ~(self.cover_votes >= T_HG)  # exists, and no cover nested in it does
         kept: list[int] = []
         for q in self.order[free[self.order]].tolist():
             if not any(self._conflicts(q, p) for p in kept):
                 kept.append(q)
-        return self.quads.take(np.asarray(kept, dtype=np.intp))
+        return kept
 
 
 def _distinct(quads: Quads, tol_px: float) -> tuple[Quads, NDArray[np.int64]]:

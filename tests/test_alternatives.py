@@ -1,0 +1,105 @@
+"""A matched pair that is no cover, retried with the other quads the closed loop found over
+it (Segmentation.alternatives, Detector._alternative)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import cv2
+import numpy as np
+import pytest
+
+from rovis import geometry
+from rovis.pipeline import DetectConfig, Detector, Pair, with_settings
+from rovis.segment import gradients
+from rovis.segment.boundary import Segmentation, refine_quad
+from rovis.segment.lines import Lines
+from rovis.segment.quads import order_corners
+from rovis.stereo import Match
+from rovis.synth import render, sample_scene
+from rovis.synth.scene import Book
+from rovis.synth.textures import CoverSpec
+
+THICKNESS = 0.03
+
+
+@pytest.fixture(scope="module")
+def book():
+    """One plain book, 24 × 16 × 3 cm, alone on a clean desk at 500 lx: its true corners,
+    both ideal images, their gradients, the desk plane and the rig."""
+    sc = sample_scene(3, lux=500.0, n_books=0)
+    b = Book(center=(0.45, 0.33, THICKNESS), yaw_deg=15.0, size=(0.24, 0.16, THICKNESS),
+             cover=CoverSpec(kind="plain", albedo=0.12, seed=4))
+    sc = replace(sc, books=(b,), papers=(), mugs=(), pens=(), cables=())
+    r = render(sc, 3)
+    ideal, grads = {}, {}
+    for cam, raw in (("left", r.left), ("right", r.right)):
+        K, D = sc.rig.intrinsics(cam)
+        maps = cv2.initUndistortRectifyMap(K, D, None, K, sc.rig.image_size, cv2.CV_16SC2)
+        ideal[cam] = cv2.remap(raw, *maps, cv2.INTER_LINEAR)
+        grads[cam] = gradients(ideal[cam])
+    P = np.array(r.truth["books"][0]["corners"])
+    return P, ideal, grads, np.asarray(r.truth["desk_plane"]), sc.rig
+
+
+def _segmentation(quad, alternatives):
+    c = order_corners(quad)[None]
+    return Segmentation(c, c, np.ones(1), Lines.empty(), 100.0, 30, 0.1, 1,
+                        (np.array(alternatives, dtype=np.float64).reshape(-1, 4, 2),))
+
+
+def _outline(P, rig):
+    """The left quad of the cover with its page block's side: the two corners on the right
+    moved 8 px further right (along the epipolar lines, so the pair makes a tilted cover)."""
+    quad = geometry.project(rig.Q_L, P)
+    right = np.argsort(quad[:, 0])[2:]
+    quad[right, 0] += 8.0
+    return quad
+
+
+def _covers(P, grads, rig):
+    """The cover's Hough-like corners in the left image (the alternative, refined when
+    tried) and its refined corners in the right (as the segmentation leaves them)."""
+    left = order_corners(geometry.project(rig.Q_L, P))
+    right = order_corners(refine_quad(grads["right"], geometry.project(rig.Q_R, P)))
+    return {"left": left, "right": right}
+
+
+def _retry(book, settings=()):
+    P, ideal, grads, desk, rig = book
+    cover = _covers(P, grads, rig)
+    segs = {"left": _segmentation(_outline(P, rig), [cover["left"]]),
+            "right": _segmentation(cover["right"], [])}
+    det = Detector(rig, with_settings(DetectConfig(), list(settings)))
+    first = Pair(segs["left"].corners[0], cover["right"], 1.0, 0.0)
+    pair, book_, why = det._reconstruct_or_why(rig, first, desk)
+    assert book_ is None and why == "tilted"  # the outline with the cover is no cover
+    mt = Match(0, 0, cover["right"], 0.0, 1.0)
+    return det._alternative(rig, segs, grads, ideal, mt, pair, why, desk, None, []), P
+
+
+def test_an_outline_paired_with_a_cover_is_retried_with_the_cover_found_at_another_T_H(book):
+    (pair, found, why), P = _retry(book)
+    assert found is not None and why == ""
+    assert pair.alternative
+    # within the grasp tolerance (the refinement of the near sides leaves a few mm)
+    assert np.linalg.norm(np.asarray(found.pose.center) - P.mean(axis=0)) < 0.01
+    assert abs(found.pose.size[2] - THICKNESS) < 0.006
+
+
+def test_an_alternative_must_lie_flatter_than_a_first_pair(book):
+    # a bar no cover can pass: the failed pair and its reason come back
+    (pair, found, why), _ = _retry(book, ["stereo.alternative_max_tilt_deg=-1"])
+    assert found is None and why == "tilted" and not pair.alternative
+
+
+def test_an_alternative_overlapping_a_book_already_found_is_not_tried(book):
+    P, ideal, grads, desk, rig = book
+    cover = _covers(P, grads, rig)
+    segs = {"left": _segmentation(_outline(P, rig), [cover["left"]]),
+            "right": _segmentation(cover["right"], [])}
+    det = Detector(rig)
+    first = Pair(segs["left"].corners[0], cover["right"], 1.0, 0.0)
+    _, found, why = det._alternative(rig, segs, grads, ideal, Match(0, 0, cover["right"], 0.0, 1.0),
+                                     first, "tilted", desk, None, [cover["left"]])
+    assert found is None and why == "tilted"
