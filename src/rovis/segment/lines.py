@@ -91,23 +91,30 @@ def hough_lines(edges: NDArray[np.uint8], min_votes: int, *, grad: Gradients | N
                          grad.dx.ravel()[at].astype(np.float32)) % np.pi
         found = []
         width = np.pi / bins
+        lo = [b * width for b in range(bins)]
+        hi = [(b + 1) * width for b in range(bins)]
+        # distance of each pixel's normal angle to each bin, on the circle of lines (mod π);
+        # all bins in one (bins, pixels) pass. The bin centres as float32: the values a
+        # Python float centre takes in float32 arithmetic (NEP 50), so each row is what a
+        # pass per bin gave, bit for bit.
+        centre = np.array([0.5 * (a + b) for a, b in zip(lo, hi)], dtype=np.float32)
+        x = phi[None, :] - centre[:, None] + np.pi / 2  # float32, in (-π, 2π)
+        # x % π without np.remainder (the slowest step here): over that range it is
+        # x, x + π or x - π; the same float32 values, checked for every float32 in
+        # [-π, 2π] (off is bit-identical)
+        x = np.where(x < 0, x + np.pi, np.where(x >= np.pi, x - np.pi, x))
+        off = np.abs(x - np.pi / 2)
+        sel = off <= 0.5 * width + margin
+        part = np.zeros(crop.shape, np.uint8)  # one bin's edge pixels at a time
+        flat = part.ravel()
         for b in range(bins):
-            lo, hi = b * width, (b + 1) * width
-            # distance of each pixel's normal angle to the bin, on the circle of lines (mod π)
-            centre = 0.5 * (lo + hi)
-            x = phi - centre + np.pi / 2  # float32, in (-π, 2π)
-            # x % π without np.remainder (the slowest step here): over that range it is
-            # x, x + π or x - π; the same float32 values, checked for every float32 in
-            # [-π, 2π] (off is bit-identical)
-            x = np.where(x < 0, x + np.pi, np.where(x >= np.pi, x - np.pi, x))
-            off = np.abs(x - np.pi / 2)
-            sel = off <= 0.5 * width + margin
-            if not sel.any():
+            pixels = in_crop[sel[b]]
+            if len(pixels) == 0:
                 continue
-            part = np.zeros(crop.shape, np.uint8)
-            part.ravel()[in_crop[sel]] = 255
+            flat[pixels] = 255
             found.append(cv2.HoughLinesWithAccumulator(part, RHO_STEP, THETA_STEP, threshold,
-                                                       min_theta=lo, max_theta=hi))
+                                                       min_theta=lo[b], max_theta=hi[b]))
+            flat[pixels] = 0
     found = [f.reshape(-1, 3) for f in found if f is not None and len(f)]
     if not found:
         return Lines.empty()
