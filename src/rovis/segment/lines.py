@@ -215,14 +215,21 @@ def support_profile(lines: Lines, edges: NDArray[np.uint8], grad: Gradients | No
     near = cv2.dilate(edges, np.ones((3, 3), np.uint8))  # an edge within 1 px counts
     n, d = lines.normals, lines.directions
     t_c = d @ centre  # position of the box centre's projection on each line
-    x = lines.rho[:, None] * n[:, :1] + (t_c[:, None] + t[None, :]) * d[:, :1]
-    y = lines.rho[:, None] * n[:, 1:] + (t_c[:, None] + t[None, :]) * d[:, 1:]
-    xi, yi = np.rint(x).astype(np.intp), np.rint(y).astype(np.intp)
-    inside = (xi >= 0) & (xi < w) & (yi >= 0) & (yi < h)
+    along = t_c[:, None] + t[None, :]  # each sample's position on its line (N, L)
+    x = lines.rho[:, None] * n[:, :1] + along * d[:, :1]
+    y = lines.rho[:, None] * n[:, 1:] + along * d[:, 1:]
+    # in place where the (N, L) temporaries allow: the same values, fewer passes
+    xi, yi = np.rint(x, out=x).astype(np.intp), np.rint(y, out=y).astype(np.intp)
+    # 0 <= v < size as one unsigned comparison (a negative v wraps to a huge one)
+    inside = (xi.view(np.uintp) < w) & (yi.view(np.uintp) < h)
     # Flat pixel index of every sample (0 outside the image, masked by ``inside``): one
     # gather for all lines instead of compressing the samples first.
-    at = np.where(inside, yi * w + xi, 0)
-    hit = (near.ravel()[at] > 0) & inside
+    at = yi
+    at *= w
+    at += xi
+    at *= inside
+    hit = near.ravel()[at] > 0
+    hit &= inside
     if grad is not None:
         # The alignment test only where there is an edge to align (a few % of the samples).
         k = np.flatnonzero(hit)
