@@ -39,7 +39,7 @@ def book():
         ideal[cam] = cv2.remap(raw, *maps, cv2.INTER_LINEAR)
         grads[cam] = gradients(ideal[cam])
     P = np.array(r.truth["books"][0]["corners"])
-    return P, ideal, grads, np.asarray(r.truth["desk_plane"]), sc.rig
+    return P, ideal, grads, np.asarray(r.truth["desk_plane"]), sc.rig, (r.left, r.right)
 
 
 def _segmentation(quad, alternatives):
@@ -66,7 +66,7 @@ def _covers(P, grads, rig):
 
 
 def _retry(book, settings=()):
-    P, ideal, grads, desk, rig = book
+    P, ideal, grads, desk, rig, _ = book
     cover = _covers(P, grads, rig)
     segs = {"left": _segmentation(_outline(P, rig), [cover["left"]]),
             "right": _segmentation(cover["right"], [])}
@@ -94,7 +94,7 @@ def test_an_alternative_must_lie_flatter_than_a_first_pair(book):
 
 
 def test_an_alternative_overlapping_a_book_already_found_is_not_tried(book):
-    P, ideal, grads, desk, rig = book
+    P, ideal, grads, desk, rig, _ = book
     cover = _covers(P, grads, rig)
     segs = {"left": _segmentation(_outline(P, rig), [cover["left"]]),
             "right": _segmentation(cover["right"], [])}
@@ -103,3 +103,41 @@ def test_an_alternative_overlapping_a_book_already_found_is_not_tried(book):
     _, found, why = det._alternative(rig, segs, grads, ideal, Match(0, 0, cover["right"], 0.0, 1.0),
                                      first, "tilted", desk, None, [cover["left"]])
     assert found is None and why == "tilted"
+
+
+def test_detect_retries_a_tilted_pair_and_finds_the_book_only_with_alternatives(book, monkeypatch):
+    # the segmentation stubbed: the left image's quad is the outline, the cover only its
+    # alternative; with the one-image search and the extent step off, only the retry can
+    # find the book
+    import rovis.pipeline as pipeline
+    P, ideal, grads, desk, rig, (raw_left, raw_right) = book
+    cover = _covers(P, grads, rig)
+    segs = {"left": _segmentation(_outline(P, rig), [cover["left"]]),
+            "right": _segmentation(cover["right"], [])}
+    calls: list[str] = []
+
+    def fake_segment(gray, grad, method, *, controller, cfg, timing):
+        calls.append("left" if len(calls) % 2 == 0 else "right")  # detect: left, then right
+        return segs[calls[-1]]
+
+    monkeypatch.setattr(pipeline, "segment", fake_segment)
+    off = ["stereo.transfer=false", "extent.grow=false", "extent.shrink=false"]
+    on = Detector(rig, with_settings(DetectConfig(), off)).detect(raw_left, raw_right)
+    without = Detector(rig, with_settings(DetectConfig(), off + ["stereo.alternatives=false"])
+                       ).detect(raw_left, raw_right)
+    assert len(on.objects) == 1 and not on.dropped
+    assert np.linalg.norm(np.asarray(on.objects[0].pose.center) - P.mean(axis=0)) < 0.01
+    assert not without.objects and [why for why, _, _ in without.dropped] == ["tilted"]
+
+
+def test_a_cover_from_the_alternatives_must_stand_above_the_desk(book):
+    # a sheet on the desk (3 mm) passes as a first pair, not as an alternative
+    P, _, _, desk, rig, _ = book
+    sheet = P.copy()
+    sheet[:, 2] = 0.003
+    corners = {cam: geometry.project(Q, sheet) for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
+    det = Detector(rig)
+    first = Pair(corners["left"], corners["right"], 1.0, 0.0)
+    assert det._reconstruct_or_why(rig, first, desk)[1] is not None
+    _, found, why = det._reconstruct_or_why(rig, replace(first, alternative=True), desk)
+    assert found is None and why == "height"

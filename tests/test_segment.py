@@ -238,6 +238,24 @@ def test_the_candidates_a_cover_won_over_are_its_losers():
     assert [len(q) for q in selection.losers(50)] == []  # no candidate exists above its votes
 
 
+def test_alternatives_take_other_thresholds_covers_and_the_losers_in_turn():
+    from dataclasses import replace as _replace
+
+    from rovis.segment.control import with_other_covers
+    from rovis.segment.quads import CoverSelection, Quads
+    square = lambda x, y, s: [(x, y), (x + s, y), (x + s, y + s), (x, y + s)]  # noqa: E731
+    # at the optimum: a union of two touching books (most edge pixels) over two of them
+    c = np.array([square(0, 0, 200), square(0, 0, 100), square(100, 0, 100)], np.float64)
+    quads = Quads(np.arange(12, dtype=np.intp).reshape(3, 4), c, np.ones((3, 4)),
+                  np.array([800.0, 400.0, 390.0]), np.full(3, 40, np.int64))
+    selection = CoverSelection(quads)
+    best = _replace(_evaluation(100.0, 0.02, [square(0, 0, 200)]), selection=selection)
+    other = _evaluation(50.0, 0.01, [square(10, 10, 150)])  # another T_H: a cover over it
+    _, _, alternatives = with_other_covers(best, [best, other], max_overlap=0.15)
+    np.testing.assert_allclose(alternatives[0], [square(10, 10, 150), square(0, 0, 100),
+                                                 square(100, 0, 100)])
+
+
 def test_the_union_can_be_switched_off():
     # a rendered desk where other thresholds add a cover (seed 106, as below)
     grad = _rendered_gradients(106)

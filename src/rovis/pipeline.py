@@ -305,7 +305,7 @@ class Detector:
         books = [self._reconstruct_or_why(rig, pair, desk_plane, texture) for pair in pairs]
         if self.cfg.stereo.alternatives:
             # beyond the paper: a pair that is no cover may be one with the other quads the
-            # closed loop found over it at other T_H
+            # closed loop found over its quads (Segmentation.alternatives)
             for i, (mt, (pair, book, why)) in enumerate(zip(matches, books)):
                 if book is None and why in ALTERNATIVE_REASONS:
                     others = [p.left for p, b, _ in books if b is not None]
@@ -316,7 +316,7 @@ class Detector:
             # A matched pair that is no flat cover often pairs a cover in one image with its
             # outline in the other: both quads are free again, for each to be looked for in
             # the other image on its own.
-            kept = [mt for mt, (_, book, _) in zip(matches, books) if book is not None]
+            kept = [(mt, pair) for mt, (pair, book, _) in zip(matches, books) if book is not None]
             more = self._transfer(rig, segs, grads, ideal, kept, desk_plane, texture)
             lap("stereo")
             pairs += more
@@ -398,15 +398,17 @@ class Detector:
         return self._masks[cam][1]
 
     def _transfer(self, rig: StereoRig, segs: dict[str, Segmentation], grads: dict[str, Gradients],
-                  ideal: dict[str, NDArray[np.uint8]], matches: list[Match],
+                  ideal: dict[str, NDArray[np.uint8]], kept: list[tuple[Match, Pair]],
                   desk_plane: NDArray[np.float64],
                   texture: dict[str, NDArray[np.float32]] | None = None) -> list[Pair]:
         """Covers found in one image only, looked for in the other (find_in_other_view;
-        where that finds nothing, a printed cover by its print, :func:`rovis.sweep.find_by_print`)."""
+        where that finds nothing, a printed cover by its print, :func:`rovis.sweep.find_by_print`).
+
+        ``kept``: the matched pairs that made books, each with the pair it became (its
+        quads may be alternatives of the matched ones, or moved by the print test)."""
         Q = {"left": rig.Q_L, "right": rig.Q_R}
-        used = {"left": {mt.left for mt in matches}, "right": {mt.right for mt in matches}}
-        taken = {"left": [segs["left"].corners[k] for k in used["left"]],
-                 "right": [segs["right"].corners[k] for k in used["right"]]}
+        used = {"left": {mt.left for mt, _ in kept}, "right": {mt.right for mt, _ in kept}}
+        taken = {"left": [pair.left for _, pair in kept], "right": [pair.right for _, pair in kept]}
         # Best-supported first: where the two images' segmentations disagree (a union of two
         # touching covers in one, one of them in the other), the cleaner quad wins.
         todo = sorted(((float(segs[src].support[k]), src, dst, k)
@@ -482,8 +484,8 @@ class Detector:
                     rig, Pair(left, found[0].corners_right, pair.quality, found[0].error_px,
                               alternative=True),
                     desk_plane, texture)
-                if trial[1] is not None and _tilt_deg(trial[1].pose, desk_plane) \
-                        <= self.cfg.stereo.alternative_max_tilt_deg:
+                # (too small, checked for the others after the extent step: a label)
+                if trial[1] is not None and min(trial[1].pose.size[:2]) >= self.cfg.min_cover_side:
                     best = trial
         return best
 
@@ -543,7 +545,10 @@ class Detector:
             return "too long"  # two books end to end, or a cover and a line beyond it
         if desk_plane is None:
             return ""
-        if _tilt_deg(pose, desk_plane) > self.cfg.max_tilt_deg:
+        # a cover from the alternatives must lie flatter (StereoConfig.alternative_max_tilt_deg)
+        max_tilt = (min(self.cfg.max_tilt_deg, self.cfg.stereo.alternative_max_tilt_deg)
+                    if pair.alternative else self.cfg.max_tilt_deg)
+        if _tilt_deg(pose, desk_plane) > max_tilt:
             return "tilted"
         # a cover found in one image only (or among the alternatives) must stand as high
         # as the search assumed: a flat pattern on the desk (a sheet, a seam rectangle)

@@ -99,9 +99,11 @@ class Segmentation:
     iterations : int
         Evaluations of the chain (outer × inner loop steps; 1 for the open loop).
     alternatives : tuple of ndarray, shape (M_k, 4, 2) each, or ()
-        Per cover, the other quads the closed loop found over it at other T_H (Hough
-        corners, not refined): where the chosen one is no cover in 3D (an outline with its
-        page block, say), stereo may try these (beyond the paper).
+        Per cover, the other quads the closed loop found over it: other T_H's covers and
+        the candidates it won over at its T_HG (Hough corners, not refined; closed loop
+        with ``SegmentConfig.union`` only). Where the chosen one is no cover in 3D (an
+        outline with its page block, a union of two books), stereo may try these (beyond
+        the paper).
     """
 
     corners: NDArray[np.float64]

@@ -11,6 +11,7 @@ evaluated T_H found where the optimum found none are kept too (:func:`with_other
 from __future__ import annotations
 
 from collections.abc import Iterable
+from itertools import zip_longest
 from dataclasses import replace
 
 import numpy as np
@@ -51,7 +52,17 @@ class CascadeController:
             lo, hi = np.log(self.cfg.T_H_range[0]), np.log(self.cfg.T_H_range[1])
             key = round(float(np.clip(log_T_H, lo, hi)), 3)
             if key not in seen:
-                seen[key] = evaluate(grad, float(np.exp(key)), self.cfg, area=area, timing=timing)
+                ev = evaluate(grad, float(np.exp(key)), self.cfg, area=area, timing=timing)
+                # an evaluation's candidates (megabytes on busy texture) serve only the
+                # optimum's alternatives: those of one below the best so far are let go
+                top = max(seen.values(), key=lambda e: e.y, default=None)
+                if top is not None and ev.y < top.y:
+                    ev = replace(ev, selection=None)
+                elif top is not None and top.y < ev.y:
+                    for k, e in seen.items():
+                        if e.selection is not None:
+                            seen[k] = replace(e, selection=None)
+                seen[key] = ev
             return seen[key]
 
         best = None
@@ -106,18 +117,18 @@ def with_other_covers(best: Evaluation, evaluations: Iterable[Evaluation], max_o
     ``max_overlap`` (of the smaller), taking the evaluations by decreasing y. The
     thresholds, y and lines stay the optimum's.
 
-    Each optimum cover's alternatives are the candidates it won over at the optimum's T_HG
-    (:meth:`CoverSelection.losers`: the union of two touching books wins over each of
-    them), then the other evaluations' covers that overlap it (at another T_H the same
-    book came out otherwise: its cover where the kept quad is its outline with the page
-    block, or the reverse), strongest evaluation first, near-duplicates (all corners
-    within 3 px) once. Stereo tries them when the cover fails a pose check.
+    Each optimum cover's alternatives are the other evaluations' covers that overlap it
+    (at another T_H the same book came out otherwise: its cover where the kept quad is its
+    outline with the page block, or the reverse), strongest evaluation first, and the
+    candidates it won over at the optimum's T_HG (:meth:`CoverSelection.losers`: the union
+    of two touching books wins over each of them), taken in turn, near-duplicates (all
+    corners within 3 px) once. Stereo tries them when the cover fails a pose check.
     """
     kept = list(best.covers.corners)
-    # the candidates the optimum's covers won over at its T_HG, then the other T_H's covers
-    alts: list[list[np.ndarray]] = (
-        [list(map(order_corners, q)) for q in best.selection.losers(best.T_HG)]
-        if best.selection is not None else [[] for _ in kept])
+    # the candidates the optimum's covers won over at its T_HG
+    losers = ([list(map(order_corners, q)) for q in best.selection.losers(best.T_HG)]
+              if best.selection is not None else [[] for _ in kept])
+    alts: list[list[np.ndarray]] = [[] for _ in kept]  # the other T_H's covers over them
     extra, sources = [], []
     for ev in sorted((e for e in evaluations if e is not best), key=lambda e: -e.y):
         for i, quad in enumerate(ev.covers.corners):
@@ -134,6 +145,13 @@ def with_other_covers(best: Evaluation, evaluations: Iterable[Evaluation], max_o
                 if all(np.abs(ordered - order_corners(q)).max() > 3.0
                        for q in [kept[k], *alts[k]]):
                     alts[k].append(ordered)
+    # the two kinds taken in turn, the other T_H's first: a cap on them keeps both
+    for k, lost in enumerate(losers):
+        merged: list[np.ndarray] = []
+        for pair in zip_longest(alts[k], lost):
+            merged += [q for q in pair if q is not None and all(
+                np.abs(q - m).max() > 3.0 for m in merged)]
+        alts[k] = merged
     alternatives = tuple(np.array(a).reshape(-1, 4, 2) for a in alts)
     if not extra:
         return best, [], alternatives

@@ -299,7 +299,12 @@ class CoverSelection:
         for p in self._kept(T_HG):
             near = np.flatnonzero(self.near[:, p] & exists)
             near = near[np.argsort(-self.quads.n_f[near], kind="stable")]
-            lost = [q for q in near.tolist() if q != p and self._conflicts(q, p)][:most]
+            lost: list[int] = []
+            for q in near.tolist():
+                if len(lost) == most:
+                    break
+                if q != p and self._conflicts(q, p):
+                    lost.append(q)
             out.append(self.quads.corners[np.asarray(lost, dtype=np.intp)].reshape(-1, 4, 2))
         return out
 
