@@ -545,10 +545,7 @@ class Detector:
             return "too long"  # two books end to end, or a cover and a line beyond it
         if desk_plane is None:
             return ""
-        # a cover from the alternatives must lie flatter (StereoConfig.alternative_max_tilt_deg)
-        max_tilt = (min(self.cfg.max_tilt_deg, self.cfg.stereo.alternative_max_tilt_deg)
-                    if pair.alternative else self.cfg.max_tilt_deg)
-        if _tilt_deg(pose, desk_plane) > max_tilt:
+        if _tilt_deg(pose, desk_plane) > self.cfg.max_tilt_deg:
             return "tilted"
         # a cover found in one image only (or among the alternatives) must stand as high
         # as the search assumed: a flat pattern on the desk (a sheet, a seam rectangle)

@@ -53,12 +53,9 @@ class StereoConfig:
     # quad may be a few pixels off: a side on its page block, or stopped short)
     transfer_max_overlap: float = 0.3  # of the smaller quad, with one already used
     # A pair that fails a pose check (rovis.pipeline.ALTERNATIVE_REASONS) is retried with
-    # the other quads the closed loop found over it (Segmentation.alternatives): a cover
-    # so found must lie flatter than a first pair must (an outline in one image with the
-    # cover in the other makes a cover a few degrees off, at the wrong height).
+    # the other quads the closed loop found over it (Segmentation.alternatives).
     alternatives: bool = True
     max_alternatives: int = 4  # per image, the first found (each pairing costs a sweep)
-    alternative_max_tilt_deg: float = 3.0
 
 
 @dataclass(frozen=True, eq=False)
