@@ -135,7 +135,8 @@ def test_a_cover_from_the_alternatives_must_stand_above_the_desk(book):
     P, _, _, desk, rig, _ = book
     sheet = P.copy()
     sheet[:, 2] = 0.003
-    corners = {cam: geometry.project(Q, sheet) for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
+    corners = {cam: geometry.project(Q, sheet)
+               for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
     det = Detector(rig)
     first = Pair(corners["left"], corners["right"], 1.0, 0.0)
     assert det._reconstruct_or_why(rig, first, desk)[1] is not None

@@ -11,8 +11,8 @@ evaluated T_H found where the optimum found none are kept too (:func:`with_other
 from __future__ import annotations
 
 from collections.abc import Iterable
-from itertools import zip_longest
 from dataclasses import replace
+from itertools import zip_longest
 
 import numpy as np
 
