@@ -142,3 +142,27 @@ def test_a_cover_from_the_alternatives_must_stand_above_the_desk(book):
     assert det._reconstruct_or_why(rig, first, desk)[1] is not None
     _, found, why = det._reconstruct_or_why(rig, replace(first, alternative=True), desk)
     assert found is None and why == "height"
+
+
+def test_a_quad_seen_in_one_image_only_is_looked_for_through_its_alternatives(book, monkeypatch):
+    # the right image's segmentation found nothing; the left kept the outline, the cover is
+    # its alternative: the one-image search finds the cover from the alternative only
+    import rovis.pipeline as pipeline
+    P, ideal, grads, desk, rig, (raw_left, raw_right) = book
+    cover = _covers(P, grads, rig)
+    empty = Segmentation(np.zeros((0, 4, 2)), np.zeros((0, 4, 2)), np.zeros(0), Lines.empty(),
+                         100.0, 30, 0.0, 1)
+    segs = {"left": _segmentation(_outline(P, rig), [cover["left"]]), "right": empty}
+    calls: list[str] = []
+
+    def fake_segment(gray, grad, method, *, controller, cfg, timing):
+        calls.append("left" if len(calls) % 2 == 0 else "right")  # detect: left, then right
+        return segs[calls[-1]]
+
+    monkeypatch.setattr(pipeline, "segment", fake_segment)
+    off = ["extent.grow=false", "extent.shrink=false"]
+    on = Detector(rig, with_settings(DetectConfig(), off)).detect(raw_left, raw_right)
+    without = Detector(rig, with_settings(DetectConfig(), off + ["stereo.transfer_alternatives=0"])
+                       ).detect(raw_left, raw_right)
+    assert len(on.objects) == 1 and not without.objects
+    assert np.linalg.norm(np.asarray(on.objects[0].pose.center) - P.mean(axis=0)) < 0.01

@@ -402,7 +402,8 @@ class Detector:
                   desk_plane: NDArray[np.float64],
                   texture: dict[str, NDArray[np.float32]] | None = None) -> list[Pair]:
         """Covers found in one image only, looked for in the other (find_in_other_view;
-        where that finds nothing, a printed cover by its print, :func:`rovis.sweep.find_by_print`).
+        where that finds nothing, a printed cover by its print, :func:`rovis.sweep.find_by_print`;
+        where neither finds anything, the same for the quad's first alternatives).
 
         ``kept``: the matched pairs that made books, each with the pair it became (its
         quads may be alternatives of the matched ones, or moved by the print test)."""
@@ -415,22 +416,34 @@ class Detector:
                        for src, dst in (("left", "right"), ("right", "left"))
                        for k in range(len(segs[src])) if k not in used[src]), reverse=True)
         out = []
+        n_alt = self.cfg.stereo.transfer_alternatives
         for quality, src, dst, k in todo:
-            source = segs[src].corners[k]
             overlap = self.cfg.stereo.transfer_max_overlap
-            if any(quad_overlap(source, q) > overlap for q in taken[src]):
+            if any(quad_overlap(segs[src].corners[k], q) > overlap for q in taken[src]):
                 continue  # already a book, from the other image's quad
-            # the other image's Canny low threshold (LSD and contours set none: the open loop's)
-            T_H = segs[dst].T_H or segs[src].T_H or self.cfg.segment.open_T_H
-            found = find_in_other_view(source, Q[src], Q[dst], desk_plane, grads[dst],
-                                       CANNY_LOW_RATIO * T_H, gray_from=ideal[src],
-                                       gray_to=ideal[dst], cfg=self.cfg.stereo)
-            if found is None and texture is not None and self.cfg.sweep.transfer:
-                # no edges to refit there: a printed cover is placed by its print alone
-                placed = find_by_print(texture[src], texture[dst], Q[src], Q[dst], source,
-                                       desk_plane, self.cfg.stereo.min_height, self.cfg.sweep)
-                found = None if placed is None else (placed,)
-            if found is None or any(quad_overlap(found[0], q) > overlap for q in taken[dst]):
+            # where the quad finds nothing, its first alternatives (the cover of an outline)
+            alts = segs[src].alternatives[k][:n_alt] if k < len(segs[src].alternatives) else ()
+            found = None
+            for a, source in enumerate([segs[src].corners[k], *alts]):
+                if a > 0:
+                    source = order_corners(refine_quad(grads[src], source))
+                    if any(quad_overlap(source, q) > overlap for q in taken[src]):
+                        continue
+                # the other image's Canny low threshold (LSD and contours set none: the open loop's)
+                T_H = segs[dst].T_H or segs[src].T_H or self.cfg.segment.open_T_H
+                found = find_in_other_view(source, Q[src], Q[dst], desk_plane, grads[dst],
+                                           CANNY_LOW_RATIO * T_H, gray_from=ideal[src],
+                                           gray_to=ideal[dst], cfg=self.cfg.stereo)
+                if found is None and texture is not None and self.cfg.sweep.transfer:
+                    # no edges to refit there: a printed cover is placed by its print alone
+                    placed = find_by_print(texture[src], texture[dst], Q[src], Q[dst], source,
+                                           desk_plane, self.cfg.stereo.min_height, self.cfg.sweep)
+                    found = None if placed is None else (placed,)
+                if found is not None and not any(quad_overlap(found[0], q) > overlap
+                                                 for q in taken[dst]):
+                    break
+                found = None
+            if found is None:
                 continue
             taken[src].append(source)
             taken[dst].append(found[0])

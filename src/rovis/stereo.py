@@ -46,7 +46,8 @@ class StereoConfig:
     appearance_weight_px: float = 2.0  # cost of (1 - NCC), in pixels
     # Finding a cover seen in one image only in the other (find_in_other_view):
     transfer: bool = True
-    min_height: float = 0.004  # cover height range searched above the desk, metres
+    min_height: float = 0.006  # cover height range searched above the desk, metres (a
+    # sheet on the desk read 4.1 mm at 15 lx and was placed by its print at 4 mm)
     max_cover_height: float = 0.10  # (the ROI's height)
     height_step: float = 0.002  # ~0.1 px of disparity at 1-2 m
     max_refine_px: float = 4.0  # refined corners this close to the predicted ones (the source
@@ -56,6 +57,7 @@ class StereoConfig:
     # the other quads the closed loop found over it (Segmentation.alternatives).
     alternatives: bool = True
     max_alternatives: int = 4  # per image, the first found (each pairing costs a sweep)
+    transfer_alternatives: int = 2  # tried as sources when a quad is found in one image only
 
 
 @dataclass(frozen=True, eq=False)
