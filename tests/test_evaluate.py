@@ -251,3 +251,16 @@ def test_bench_pipeline_runs_small(capsys):
         assert 0.5 * median["segmentation"][c] <= steps <= 1.05 * median["segmentation"][c]
     closed, opened, warm = (float(x) for x in rows["iterations"].split()[1:4])
     assert closed > opened >= 2 and warm > opened
+    assert rows["lsd"].split()[1:] == ["-", "-", "-"]  # a step no method ran
+
+
+def test_bench_pipeline_takes_detector_settings(capsys):
+    assert main(["bench", "--n", "1", "--size", "512x384", "--workers", "1",
+                 "--set", "segment.lsd=true"]) == 0
+    lsd = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("  lsd"))
+    # the columns: closed (LSD timed), open (it never runs), closed warm (timed)
+    cells = re.findall(r"(\d+\.\d)\s+\(\s*[\d.]+-\s*[\d.]+\)|\s(-)(?=\s|$)", lsd)
+    assert [bool(dash) for _, dash in cells] == [False, True, False]
+    assert float(cells[0][0]) > 0 and float(cells[2][0]) > 0
+    assert main(["bench", "--n", "1", "--set", "segment.nope=1"]) == 2
+    assert "segment.nope" in capsys.readouterr().err

@@ -289,3 +289,37 @@ def test_a_warm_started_search_keeps_the_covers_of_other_thresholds():
     forgetful.segment(grad)
     forgetful.last_extra_T_H = []  # the climb alone
     assert len(forgetful.segment(grad)) < len(cold)
+
+
+def _stub_lsd(monkeypatch, corners):
+    """Make the closed loop's LSD source return ``corners`` (K, 4, 2) as its covers."""
+    import rovis.segment.methods as methods
+    stub = _evaluation(0.0, 0.0, corners)
+    monkeypatch.setattr(methods, "_lsd", lambda gray, grad, cfg: stub)
+
+
+def test_lsd_covers_join_the_closed_loop_where_it_found_none(monkeypatch):
+    img, truth = drawn_scene()
+    apart = [(20.0, 400.0), (120.0, 400.0), (120.0, 460.0), (20.0, 460.0)]  # a flat desk patch
+    centre = truth[0].mean(axis=0)  # over a book the loop finds (its outline, say): an
+    over = centre + 1.2 * (truth[0] - centre)  # alternative, not a second cover
+    _stub_lsd(monkeypatch, [apart, over])
+    grad = gradients(img)
+    off = segment(img, grad, "closed", cfg=SegmentConfig())
+    on = segment(img, grad, "closed", cfg=SegmentConfig(lsd=True))
+    assert len(on) == len(off) + 1
+    assert (on.T_H, on.T_HG, on.y) == (off.T_H, off.T_HG, off.y)
+    # on the desk's faint texture refinement barely moves it
+    assert np.abs(on.corners - order_corners(np.array(apart))).max(axis=(1, 2)).min() < 6.0
+    first = int(np.argmin([np.abs(c - truth[0]).max() for c in on.corners]))
+    assert any(np.abs(a - order_corners(over)).max() < 1e-6 for a in on.alternatives[first])
+
+
+def test_lsd_covers_are_kept_where_the_closed_loop_found_nothing(monkeypatch):
+    img = np.full((480, 640), 100, np.uint8)  # no edges: the loop's y is 0
+    quad = [(100.0, 100.0), (300.0, 100.0), (300.0, 250.0), (100.0, 250.0)]
+    _stub_lsd(monkeypatch, [quad])
+    ctl = CascadeController(SegmentConfig(lsd=True))
+    got = segment(img, gradients(img), "closed", controller=ctl)
+    np.testing.assert_allclose(got.corners, [order_corners(np.array(quad))])
+    assert ctl.last_extra_T_H == []  # a warm start evaluates no T_H for LSD's covers

@@ -5,14 +5,18 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
 from rovis import geometry
 from rovis.calib import StereoRig, make_rig
+
+if TYPE_CHECKING:
+    from rovis.pipeline import DetectConfig
 
 
 @dataclass(frozen=True)
@@ -69,7 +73,7 @@ def bench_triangulation(n_points: int = 1_000_000, *, repeats: int = 7,
 # --------------------------------------------------------------------------- the pipeline
 
 PIPELINE_STAGES = ("marker", "undistort", "gradients", "segmentation", "stereo", "pose", "extent")
-SEGMENTATION_STEPS = ("canny", "hough", "quads", "refine")  # parts of "segmentation"
+SEGMENTATION_STEPS = ("canny", "hough", "quads", "refine", "lsd")  # parts of "segmentation"
 
 
 @dataclass(frozen=True)
@@ -185,17 +189,19 @@ def render_frames(n: int, *, size: tuple[int, int] = (1024, 768), protocol: str 
 
 
 def time_pipeline(rig: StereoRig, frames: list[tuple[np.ndarray, np.ndarray]], method: str, *,
-                  previous: list[tuple[np.ndarray, np.ndarray]] | None = None) -> PipelineTiming:
+                  previous: list[tuple[np.ndarray, np.ndarray]] | None = None,
+                  cfg: DetectConfig | None = None) -> PipelineTiming:
     """Per-frame and per-stage times of one Detector over ``frames``, on one core; the
     detector is reset before each frame, and a first warm-up frame is not counted.
 
     With ``previous`` (one frame per frame, e.g. the same scene with other sensor noise), each
     timed frame follows its previous one untimed, as in a still camera's sequence: the closed
-    loop's controller then starts from that frame's optimum (warm start)."""
+    loop's controller then starts from that frame's optimum (warm start). ``cfg``: the
+    detector's settings (its method replaced by ``method``)."""
     from rovis.pipeline import DetectConfig, Detector
 
     cv2.setNumThreads(1)
-    detector = Detector(rig, DetectConfig(method=method))
+    detector = Detector(rig, replace(cfg or DetectConfig(), method=method))
     detector.detect(*frames[0])  # warm-up
     keys = PIPELINE_STAGES + tuple(f"segmentation.{step}" for step in SEGMENTATION_STEPS)
     stages: dict[str, list[float]] = {s: [] for s in keys}
@@ -221,11 +227,12 @@ def time_pipeline(rig: StereoRig, frames: list[tuple[np.ndarray, np.ndarray]], m
 _BENCH: dict[str, object] = {}
 
 
-def _bench_init(rig: StereoRig, method: str, frames: list[tuple[np.ndarray, np.ndarray]]) -> None:
-    from rovis.pipeline import DetectConfig, Detector
+def _bench_init(rig: StereoRig, cfg: DetectConfig,
+                frames: list[tuple[np.ndarray, np.ndarray]]) -> None:
+    from rovis.pipeline import Detector
 
     cv2.setNumThreads(1)
-    detector = Detector(rig, DetectConfig(method=method))
+    detector = Detector(rig, cfg)
     detector.detect(*frames[0])  # warm-up
     _BENCH.update(detector=detector, frames=frames)
 
@@ -241,15 +248,19 @@ def _bench_frame(i: int) -> int:
 
 
 def rate_all_cores(rig: StereoRig, frames: list[tuple[np.ndarray, np.ndarray]], method: str,
-                   workers: int) -> float:
+                   workers: int, cfg: DetectConfig | None = None) -> float:
     """Frames per second of ``method`` over a process pool of ``workers`` (one Detector and
-    one OpenCV thread each); the pool's start-up and warm-up are not counted."""
+    one OpenCV thread each; ``cfg``: its settings); the pool's start-up and warm-up are not
+    counted."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, wait
 
+    from rovis.pipeline import DetectConfig
+
     # spawn, not fork: a child forked after OpenCV's thread pool has run can deadlock in it
     with ProcessPoolExecutor(max_workers=workers, initializer=_bench_init,
-                             initargs=(rig, method, frames),
+                             initargs=(rig, replace(cfg or DetectConfig(), method=method),
+                                       frames),
                              mp_context=multiprocessing.get_context("spawn")) as pool:
         wait([pool.submit(_bench_ready) for _ in range(workers)])
         t0 = time.perf_counter()
@@ -267,6 +278,7 @@ def cpu_count() -> int:
 
 def bench_pipeline(n: int = 30, *, size: tuple[int, int] = (1024, 768), method: str = "closed",
                    workers: int | None = None, protocol: str = "mixed", seed: int = 0,
+                   settings: Sequence[str] = (),
                    progress: Callable[[str], None] | None = None) -> PipelineBench:
     """Time the whole pipeline per frame and per stage (``rovis bench``).
 
@@ -274,14 +286,17 @@ def bench_pipeline(n: int = 30, *, size: tuple[int, int] = (1024, 768), method: 
     closed and open loop (for their segmentation-time ratio), each frame from scratch; then
     the closed loop in a still-camera sequence (``closed, warm``: each scene's frame after
     one of the same scene, the controller warm-started); then ``method``'s rate over a
-    process pool of ``workers`` (default: all cores; none with one core).
+    process pool of ``workers`` (default: all cores; none with one core). ``settings``:
+    ``NAME=VALUE`` changes to the detector's settings, as ``rovis eval --set``, for every
+    method timed.
     """
-    from rovis.pipeline import METHODS
+    from rovis.pipeline import METHODS, DetectConfig, with_settings
 
     if n <= 0:
         raise ValueError(f"n: expected a positive integer, got {n}")
     if method not in METHODS:
         raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
+    cfg = with_settings(DetectConfig(), settings)  # a bad setting fails before any rendering
     workers = cpu_count() if workers is None else workers
     say = progress or (lambda text: None)
     say(f"rovis bench: rendering {n} scenes")
@@ -289,14 +304,15 @@ def bench_pipeline(n: int = 30, *, size: tuple[int, int] = (1024, 768), method: 
     timings = {}
     for m in dict.fromkeys((method, "closed", "open")):
         say(f"rovis bench: timing {m} on one core")
-        timings[m] = time_pipeline(rig, frames, m)
+        timings[m] = time_pipeline(rig, frames, m, cfg=cfg)
     if "closed" in timings:  # the controller's warm start only pays in a sequence
         say("rovis bench: timing closed on one core, each frame after one of the same scene")
         _, next_frames = render_frames(n, size=size, protocol=protocol, seed=seed, take=1)
-        timings["closed, warm"] = time_pipeline(rig, next_frames, "closed", previous=frames)
+        timings["closed, warm"] = time_pipeline(rig, next_frames, "closed", previous=frames,
+                                                cfg=cfg)
     fps_all = None
     if workers > 1:
         say(f"rovis bench: timing {method} on {workers} cores")
-        fps_all = rate_all_cores(rig, frames, method, workers)
+        fps_all = rate_all_cores(rig, frames, method, workers, cfg)
     return PipelineBench(n=n, size=tuple(size), protocol=protocol, method=method,  # type: ignore[arg-type]
                          timings=timings, workers=workers, fps_all_cores=fps_all)

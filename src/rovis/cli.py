@@ -309,6 +309,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
         report = bench_pipeline(n=args.n, size=args.size, method=args.method,
                                 workers=args.workers, protocol=args.protocol, seed=args.seed,
+                                settings=args.set,
                                 progress=lambda text: print(text, file=sys.stderr, flush=True))
         print(report.text())
         return 0
@@ -482,6 +483,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="triangulation: points per run (default: %(default)s)")
     p.add_argument("--repeats", type=_positive_int, default=7,
                    help="triangulation, synth: runs (default: %(default)s)")
+    p.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
+                   help="pipeline: change a detector setting for every method timed, e.g. "
+                        "--set segment.lsd=true (DetectConfig's fields, nested with dots; "
+                        "repeatable)")
     p.set_defaults(func=_cmd_bench)
     return parser
 

@@ -50,6 +50,11 @@ class SegmentConfig:
         Beyond the paper: also keep the covers found at the other T_H the search evaluated
         that overlap none found at the optimum (a faint book's edges may need a lower T_H
         than the image's optimum, a busy one's a higher).
+    lsd : bool
+        Beyond the paper, off by default: also keep the covers OpenCV's line segment
+        detector finds (the ``lsd`` method's) where the closed loop found none, and offer
+        those over its covers as alternatives. More books, but also more covers that are
+        a part of a book or reach onto a neighbour (measured: docs/segmentation.md).
     """
 
     n_max: int = 100
@@ -64,6 +69,7 @@ class SegmentConfig:
     max_inner: int = 12
     max_edge_frac: float = 0.08
     union: bool = True
+    lsd: bool = False
     quads: QuadConfig = field(default_factory=QuadConfig)
 
 

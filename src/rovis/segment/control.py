@@ -10,7 +10,7 @@ evaluated T_H found where the optimum found none are kept too (:func:`with_other
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import replace
 from itertools import zip_longest
 
@@ -42,9 +42,11 @@ class CascadeController:
         self.last_T_H = None
         self.last_extra_T_H = []
 
-    def segment(self, grad: Gradients, *, timing: dict[str, float] | None = None) -> Segmentation:
+    def segment(self, grad: Gradients, *, timing: dict[str, float] | None = None,
+                more: Sequence[Evaluation] = ()) -> Segmentation:
         """Search T_H and T_HG for one image, then refine the best covers (``timing``: see
-        :func:`rovis.segment.boundary.evaluate`)."""
+        :func:`rovis.segment.boundary.evaluate`). ``more``: covers from other line sources
+        (``SegmentConfig.lsd``), kept like another T_H's where the loop found none."""
         area = roi_area(grad)
         seen: dict[float, Evaluation] = {}
 
@@ -76,10 +78,12 @@ class CascadeController:
         self.last_T_H = best.T_H if best.y > 0 else self.last_T_H
         iterations = sum(ev.inner_iterations for ev in seen.values())
         alternatives: tuple[np.ndarray, ...] = ()
-        if self.cfg.union and best.y > 0:
-            best, sources, alternatives = with_other_covers(best, seen.values(),
+        if self.cfg.union and (best.y > 0 or any(len(ev.covers) for ev in more)):
+            best, sources, alternatives = with_other_covers(best, [*seen.values(), *more],
                                                             self.cfg.quads.max_overlap)
-            self.last_extra_T_H = sorted({ev.T_H for ev in sources})
+            # the T_H a warm start evaluates again: the loop's own, not another source's
+            self.last_extra_T_H = sorted({ev.T_H for ev in sources
+                                          if any(ev is e for e in seen.values())})
         return finish(grad, best, iterations, timing=timing, alternatives=alternatives)
 
     def _full_search(self, run) -> Evaluation:  # type: ignore[no-untyped-def]

@@ -13,6 +13,8 @@ eq. 1 corner order), so their results differ only by how edges and lines are fou
 
 from __future__ import annotations
 
+import time
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
@@ -49,7 +51,14 @@ def segment(gray: NDArray[np.uint8], grad: Gradients, method: str = "closed", *,
     """
     cfg = cfg or (controller.cfg if controller is not None else SegmentConfig())
     if method == "closed":
-        return (controller or CascadeController(cfg, warm_start=False)).segment(grad, timing=timing)
+        more = ()
+        if cfg.lsd:  # beyond the paper: a second line source's covers (SegmentConfig.lsd)
+            clock = time.perf_counter()
+            more = (_lsd(gray, grad, cfg),)
+            if timing is not None:
+                timing["lsd"] = timing.get("lsd", 0.0) + 1e3 * (time.perf_counter() - clock)
+        return (controller or CascadeController(cfg, warm_start=False)).segment(
+            grad, timing=timing, more=more)
     if method == "open":
         return finish(grad, evaluate(grad, cfg.open_T_H, cfg, T_HG=cfg.open_T_HG, timing=timing),
                       1, timing=timing)
