@@ -31,7 +31,8 @@ from rovis.segment.edges import CANNY_LOW_RATIO, Gradients
 from rovis.segment.methods import METHODS, segment
 from rovis.segment.boundary import refine_quad
 from rovis.segment.quads import order_corners, quad_overlap
-from rovis.stereo import Match, StereoConfig, find_in_other_view, match_quads
+from rovis.stereo import (Match, StereoConfig, find_in_other_view, flat_rectangle, match_quads,
+                          pool_pairs)
 from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pass, on_plane,
                          texture_height)
 
@@ -194,6 +195,7 @@ class Pair:
     error_px: float  # stereo match error (0 for a transferred cover)
     transferred: str | None = None
     alternative: bool = False  # from Segmentation.alternatives, after the first pair failed
+    pooled: bool = False  # from the two images' candidate pools (Detector._from_pool)
 
 
 class Detector:
@@ -323,6 +325,10 @@ class Detector:
             books += [self._reconstruct_or_why(rig, pair, desk_plane, texture) for pair in more]
             lap("pose")
         found = [(pair, book) for pair, book, _ in books if book is not None]
+        if self.cfg.stereo.pool:
+            # beyond the paper: books among the candidates neither image's selection kept
+            found += self._from_pool(rig, segs, grads, found, desk_plane, texture)
+            lap("stereo")
         # a failed pair whose quad became a book through the one-image search is not lost
         dropped = [(why, pair.left, pair.right) for pair, book, why in books
                    if book is None and not any(
@@ -454,6 +460,75 @@ class Detector:
                             quality, 0.0, transferred=src))
         return out
 
+    def _from_pool(self, rig: StereoRig, segs: dict[str, Segmentation],
+                   grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
+                   desk_plane: NDArray[np.float64] | None,
+                   texture: dict[str, NDArray[np.float32]] | None,
+                   ) -> list[tuple[Pair, BookDetection]]:
+        """Books from the two images' candidate pools (:attr:`Segmentation.pool`) where no
+        book is yet.
+
+        The pairs of Hough quads that roughly make a flat, book-sized rectangle
+        (:func:`rovis.stereo.pool_pairs`) are refined in both images (Hough corners are
+        too coarse for a height: 1 px of disparity is ~1.5 cm) and kept if the refined
+        pair still matches and is one (:func:`rovis.stereo.flat_rectangle`, the pose
+        checks' limits). The most edge pixels in both images first, each must pass the pose
+        checks; a pair whose left quad holds two or more such pairs that fill it is taken
+        for the union of touching books and gives way to them.
+        """
+        cfg = self.cfg
+        overlap = cfg.stereo.transfer_max_overlap
+        pool = {cam: segs[cam].pool for cam in ("left", "right")}
+        taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
+        index = {cam: np.array([k for k, q in enumerate(pool[cam].corners)
+                                if not any(quad_overlap(q, t) > overlap for t in taken[cam])],
+                               dtype=np.intp) for cam in pool}
+        pp = pool_pairs(pool["left"].corners[index["left"]], pool["right"].corners[index["right"]],
+                        rig.Q_L, rig.Q_R, desk_plane=desk_plane,
+                        side_range=(0.8 * cfg.min_cover_side, 1.1 * cfg.max_cover_side),
+                        cfg=cfg.stereo)
+        if len(pp) == 0:
+            return []
+        i, j = index["left"][pp.left], index["right"][pp.right]
+        refined: dict[tuple[str, int], NDArray[np.float64]] = {}
+
+        def sub_pixel(cam: str, k: int) -> NDArray[np.float64]:
+            if (cam, k) not in refined:
+                refined[cam, k] = refine_quad(grads[cam], pool[cam].corners[k])
+            return refined[cam, k]
+
+        left = np.array([sub_pixel("left", k) for k in i.tolist()])
+        right = np.array([np.roll(sub_pixel("right", k), -s, axis=0)
+                          for k, s in zip(j.tolist(), pp.shift.tolist())])
+        P = geometry.triangulate_dlt(rig.Q_L, rig.Q_R, left.reshape(-1, 2),
+                                     right.reshape(-1, 2)).reshape(-1, 4, 3)
+        ok = flat_rectangle(P, desk_plane, side_range=(0.8 * cfg.min_cover_side,
+                                                       cfg.max_cover_side),
+                            max_tilt_deg=cfg.max_tilt_deg,
+                            height_range=(cfg.stereo.min_height, cfg.stereo.max_cover_height))
+        keep = np.flatnonzero(ok)
+        score = pool["left"].n_f[i[keep]] + pool["right"].n_f[j[keep]]
+        keep = keep[np.argsort(-score, kind="stable")]
+        area = np.array([cv2.contourArea(q.astype(np.float32)) for q in left[keep]])
+        out: list[tuple[Pair, BookDetection]] = []
+        for rank, a in enumerate(keep.tolist()):
+            if any(quad_overlap(left[a], t) > overlap for t in taken["left"]) or \
+                    any(quad_overlap(right[a], t) > overlap for t in taken["right"]):
+                continue
+            if _is_union(rank, left[keep], area, overlap):
+                continue
+            quality = float(min(pool["left"].support[i[a]].mean(),
+                                pool["right"].support[j[a]].mean()))
+            pair, book, _ = self._reconstruct_or_why(
+                rig, Pair(left[a], right[a], quality, float(pp.error_px[a]), pooled=True),
+                desk_plane, texture)
+            if book is None:
+                continue
+            taken["left"].append(pair.left)
+            taken["right"].append(pair.right)
+            out.append((pair, book))
+        return out
+
     def _alternative(self, rig: StereoRig, segs: dict[str, Segmentation],
                      grads: dict[str, Gradients], ideal: dict[str, NDArray[np.uint8]],
                      mt: Match, pair: Pair, why: str, desk_plane: NDArray[np.float64] | None,
@@ -563,7 +638,8 @@ class Detector:
         # a cover found in one image only (or among the alternatives) must stand as high
         # as the search assumed: a flat pattern on the desk (a sheet, a seam rectangle)
         # is no book
-        low = self.cfg.stereo.min_height if pair.transferred or pair.alternative else 0.0
+        low = (self.cfg.stereo.min_height if pair.transferred or pair.alternative or pair.pooled
+               else 0.0)
         if not low < pose.size[2] <= self.cfg.stereo.max_height:
             return "height"
         # a side lying on the desk is a line on the desk (a shadow's edge, the page
@@ -648,6 +724,20 @@ class Detector:
             corners_right_px=rig.distort_points(c_right, "right"),
             reprojection_error_px=float(reproj.mean()),
             quality=pair.quality, stereo_error_px=pair.error_px), ""
+
+
+def _is_union(a: int, quads: NDArray[np.float64], area: NDArray[np.float64],
+              max_overlap: float, fill: float = 0.8) -> bool:
+    """Whether quad ``a`` of ``quads`` (N, 4, 2) is filled by two or more smaller ones
+    (each at least 90 % inside it, overlapping each other by at most ``max_overlap``) that
+    cover at least ``fill`` of its area (``area``: (N,), px²): two touching books."""
+    inner = [b for b in np.argsort(-area, kind="stable").tolist()
+             if b != a and area[b] < 0.9 * area[a] and quad_overlap(quads[b], quads[a]) > 0.9]
+    kept: list[int] = []
+    for b in inner:
+        if not any(quad_overlap(quads[b], quads[k]) > max_overlap for k in kept):
+            kept.append(b)
+    return len(kept) >= 2 and float(area[kept].sum()) >= fill * area[a]
 
 
 def _tilt_deg(pose: geometry.BookPose, desk_plane: NDArray[np.float64] | None) -> float:

@@ -58,6 +58,9 @@ class StereoConfig:
     alternatives: bool = True
     max_alternatives: int = 4  # per image, the first found (each pairing costs a sweep)
     transfer_alternatives: int = 2  # tried as sources when a quad is found in one image only
+    # Where no book is yet, books among the candidate quads neither image's selection kept
+    # (Segmentation.pool): pairs that make a flat, book-sized rectangle (pool_pairs).
+    pool: bool = True
 
 
 @dataclass(frozen=True, eq=False)
@@ -136,6 +139,128 @@ def match_quads(quads_left: ArrayLike, quads_right: ArrayLike, Q_L: ArrayLike, Q
     rows, cols = linear_sum_assignment(np.where(finite, cost, 1e9))
     out = [Match(int(k), int(m), *best[(k, m)]) for k, m in zip(rows, cols) if finite[k, m]]
     return sorted(out, key=lambda mt: mt.left)
+
+
+@dataclass(frozen=True, eq=False)
+class PoolPairs:
+    """Pairs of candidate quads (one per image) that make a flat, book-sized rectangle.
+
+    Attributes
+    ----------
+    left, right : ndarray, shape (P,), intp
+        Indices into the left and right pools.
+    corners_right : ndarray, shape (P, 4, 2)
+        The right quad's corners reordered to correspond to the left's P1..P4.
+    shift : ndarray, shape (P,), intp
+        That order: ``corners_right[p] = pool_right[right[p]][(k + shift[p]) % 4]``.
+    error_px : ndarray, shape (P,)
+        Mean distance of the right corners to their allowed segments.
+    """
+
+    left: NDArray[np.intp]
+    right: NDArray[np.intp]
+    corners_right: NDArray[np.float64]
+    shift: NDArray[np.intp]
+    error_px: NDArray[np.float64]
+
+    def __len__(self) -> int:
+        return len(self.left)
+
+
+def pool_pairs(pool_left: ArrayLike, pool_right: ArrayLike, Q_L: ArrayLike, Q_R: ArrayLike, *,
+               desk_plane: ArrayLike | None = None, side_range: tuple[float, float] = (0.05, 0.45),
+               max_skew_deg: float = 25.0, max_tilt_deg: float = 25.0,
+               height_slack: float = 0.02, cfg: StereoConfig = StereoConfig()) -> PoolPairs:
+    """Every left × right pair of candidate quads that could be one book's cover.
+
+    Beyond the paper. Each image's segmentation chooses its covers alone, by edge pixels;
+    there a union of two touching books, a book's outline or a square of a printed pattern
+    can win over the cover. Seen from two cameras most of those are no flat rectangle,
+    so the two images' candidates (:attr:`rovis.segment.Segmentation.pool`) are paired here:
+    the right corners on their epipolar segments (as :func:`match_quads`), and the
+    triangulated corners roughly a flat rectangle (:func:`flat_rectangle`). The gates are
+    loose by default: Hough corners are 1–4 px off, a few centimetres of height; the
+    caller refines the pairs that pass and checks them again. Vectorised over all pairs: a
+    coarse gate on the quads' centres first, the corner test on those that pass.
+
+    Parameters
+    ----------
+    pool_left, pool_right : array_like, shape (K, 4, 2) and (M, 4, 2)
+        Ideal pixel corners, each in eq. 1 order.
+    Q_L, Q_R : array_like, shape (3, 4)
+    desk_plane : array_like, shape (4,), optional
+    side_range, max_skew_deg, max_tilt_deg, height_slack
+        :func:`flat_rectangle`'s gates.
+
+    Returns
+    -------
+    PoolPairs
+    """
+    qL = np.asarray(pool_left, dtype=np.float64).reshape(-1, 4, 2)
+    qR = np.asarray(pool_right, dtype=np.float64).reshape(-1, 4, 2)
+    none = PoolPairs(np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros((0, 4, 2)),
+                     np.zeros(0, np.intp), np.zeros(0))
+    if len(qL) == 0 or len(qR) == 0:
+        return none
+    Q_L, Q_R = np.asarray(Q_L, dtype=np.float64), np.asarray(Q_R, dtype=np.float64)
+    near, far = _segments(qL.reshape(-1, 2), Q_L, Q_R, desk_plane, cfg)
+    near, far = near.reshape(-1, 4, 2), far.reshape(-1, 4, 2)
+    # coarse gate: the right centre near the segment of the left corners' mean
+    d = _point_segment_distance(qR.mean(axis=1)[None], near.mean(axis=1)[:, None],
+                                far.mean(axis=1)[:, None])  # (K, M)
+    i, j = np.nonzero(d <= 2.0 * cfg.max_error_px)
+    if len(i) == 0:
+        return none
+    shifts = np.array([np.roll(np.arange(4), -s) for s in range(4)])
+    cand = qR[j][:, shifts]  # (P, 4 shifts, 4 corners, 2)
+    err = _point_segment_distance(cand, near[i][:, None], far[i][:, None]).mean(axis=2)
+    s_best = np.argmin(err, axis=1)
+    e_best = err[np.arange(len(i)), s_best]
+    ok = e_best <= cfg.max_error_px
+    if not ok.any():
+        return none
+    i, j, s_best, e_best, corners_r = i[ok], j[ok], s_best[ok], e_best[ok], cand[ok, s_best[ok]]
+    P = geometry.triangulate_dlt(Q_L, Q_R, qL[i].reshape(-1, 2),
+                                 corners_r.reshape(-1, 2)).reshape(-1, 4, 3)
+    ok = flat_rectangle(P, desk_plane, side_range=side_range, max_skew_deg=max_skew_deg,
+                        max_tilt_deg=max_tilt_deg,
+                        height_range=(cfg.min_height - height_slack,
+                                      cfg.max_cover_height + height_slack))
+    return PoolPairs(i[ok], j[ok], corners_r[ok], s_best[ok], e_best[ok])
+
+
+def flat_rectangle(P: ArrayLike, desk_plane: ArrayLike | None = None, *,
+                   side_range: tuple[float, float] = (0.05, 0.45), max_skew_deg: float = 12.0,
+                   max_tilt_deg: float = 6.0,
+                   height_range: tuple[float, float] = (0.0, 0.10)) -> NDArray[np.bool_]:
+    """Which quads of world corners ``P`` (N, 4, 3) could be a book's cover on the desk.
+
+    Every side within ``side_range`` (metres), every angle within ``max_skew_deg`` of 90°;
+    with the desk plane, the normal of the diagonals within ``max_tilt_deg`` of the desk's
+    and every corner within ``height_range`` (metres) above it.
+
+    Returns
+    -------
+    ndarray, shape (N,), bool
+    """
+    P = np.asarray(P, dtype=np.float64).reshape(-1, 4, 3)
+    side = np.roll(P, -1, axis=1) - P  # side k from corner k to k + 1
+    length = np.linalg.norm(side, axis=2)
+    unit = side / np.maximum(length[..., None], 1e-12)
+    # |cos| of the angle between neighbouring sides: 0 for a rectangle
+    cos = np.abs(np.sum(unit * np.roll(unit, -1, axis=1), axis=2))
+    with np.errstate(invalid="ignore"):
+        ok = (np.all(np.isfinite(P), axis=(1, 2))
+              & np.all((length >= side_range[0]) & (length <= side_range[1]), axis=1)
+              & np.all(cos <= np.sin(np.radians(max_skew_deg)), axis=1))
+        if desk_plane is not None:
+            plane = np.asarray(desk_plane, dtype=np.float64)
+            normal = np.cross(P[:, 2] - P[:, 0], P[:, 3] - P[:, 1])  # of the diagonals
+            normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+            height = P @ plane[:3] + plane[3]  # (N, 4)
+            ok &= ((np.abs(normal @ plane[:3]) >= np.cos(np.radians(max_tilt_deg)))
+                   & np.all((height >= height_range[0]) & (height <= height_range[1]), axis=1))
+    return ok
 
 
 def find_in_other_view(corners: ArrayLike, Q_from: ArrayLike, Q_to: ArrayLike,

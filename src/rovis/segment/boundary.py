@@ -9,7 +9,8 @@ orders their corners (eq. 1).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from collections.abc import Iterable
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -17,7 +18,8 @@ from numpy.typing import NDArray
 
 from rovis.segment.edges import Gradients, canny
 from rovis.segment.lines import Lines, hough_lines, intersect, refine_segment, support_profile
-from rovis.segment.quads import CoverSelection, QuadConfig, Quads, candidate_quads, order_corners
+from rovis.segment.quads import (CoverSelection, QuadConfig, Quads, _canonical, _distinct,
+                                 candidate_quads, order_corners)
 from rovis.segment.quality import PRINTED, quality
 
 
@@ -55,6 +57,9 @@ class SegmentConfig:
         detector finds (the ``lsd`` method's) where the closed loop found none, and offer
         those over its covers as alternatives. More books, but also more covers that are
         a part of a book or reach onto a neighbour (measured: docs/segmentation.md).
+    pool_size : int
+        Most candidate quads kept per evaluation and per image for stereo to choose from
+        (:attr:`Segmentation.pool`), the most edge pixels first.
     """
 
     n_max: int = 100
@@ -70,6 +75,7 @@ class SegmentConfig:
     max_edge_frac: float = 0.08
     union: bool = True
     lsd: bool = False
+    pool_size: int = 400
     quads: QuadConfig = field(default_factory=QuadConfig)
 
 
@@ -110,6 +116,14 @@ class Segmentation:
         with ``SegmentConfig.union`` only). Where the chosen one is no cover in 3D (an
         outline with its page block, a union of two books), stereo may try these (beyond
         the paper).
+    pool : Quads
+        Beyond the paper: every distinct candidate quad the chain formed (at the optimum
+        and, in the closed loop, at the other T_H it evaluated), corners in eq. 1 order
+        (Hough corners, not refined), the most edge pixels first; stereo picks books among
+        them where no cover gave one (:func:`rovis.stereo.pool_pairs`). Its per-side
+        ``lines`` and ``support`` keep each candidate's own cyclic order, and ``lines``
+        index the Lines of the evaluation it came from. Empty for methods without
+        candidates.
     """
 
     corners: NDArray[np.float64]
@@ -121,6 +135,7 @@ class Segmentation:
     y: float
     iterations: int
     alternatives: tuple[NDArray[np.float64], ...] = ()
+    pool: Quads = field(default_factory=Quads.empty)
 
     def __len__(self) -> int:
         return len(self.corners)
@@ -199,22 +214,41 @@ def _lap(timing: dict[str, float] | None, stage: str, since: float) -> float:
 
 def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
            timing: dict[str, float] | None = None,
-           alternatives: tuple[NDArray[np.float64], ...] = ()) -> Segmentation:
+           alternatives: tuple[NDArray[np.float64], ...] = (),
+           pool: Quads | None = None) -> Segmentation:
     """Refine the chosen covers to sub-pixel corners and order them (eq. 1); ``timing``
     accumulates the milliseconds under ``"refine"``; ``alternatives``: per cover of ``ev``,
-    other quads over it (kept as they are)."""
+    other quads over it (kept as they are); ``pool``: the candidates for
+    :attr:`Segmentation.pool` (default: ``ev``'s own, :func:`candidate_pool`)."""
     clock = time.perf_counter()
+    if pool is None:
+        pool = candidate_pool([ev.selection.quads] if ev.selection is not None else [])
+    pool = replace(pool, corners=_canonical(pool.corners)) if len(pool) else Quads.empty()
     if len(ev.covers) == 0:
         _lap(timing, "refine", clock)
         return Segmentation(np.zeros((0, 4, 2)), np.zeros((0, 4, 2)), np.zeros(0), ev.lines,
-                            ev.T_H, ev.T_HG, ev.y, iterations)
+                            ev.T_H, ev.T_HG, ev.y, iterations, pool=pool)
     refined, coarse = [], []
     for quad in ev.covers.corners:
         refined.append(order_corners(refine_quad(grad, quad)))
         coarse.append(order_corners(quad))
     _lap(timing, "refine", clock)
     return Segmentation(np.array(refined), np.array(coarse), ev.covers.support.mean(axis=1),
-                        ev.lines, ev.T_H, ev.T_HG, ev.y, iterations, alternatives)
+                        ev.lines, ev.T_H, ev.T_HG, ev.y, iterations, alternatives, pool=pool)
+
+
+def candidate_pool(parts: Iterable[Quads], most: int = 400, duplicate_px: float = 3.0) -> Quads:
+    """The distinct quads of ``parts`` (the candidates of one or more evaluations'
+    :class:`CoverSelection`, at every T_HG), near-duplicates (all corners within
+    ``duplicate_px``) once, the ``most`` with the most edge pixels. Beyond the paper: the
+    quads a per-image selection passed over, for stereo to choose from
+    (:attr:`Segmentation.pool`)."""
+    parts = [q for q in parts if len(q)]
+    if not parts:
+        return Quads.empty()
+    quads = parts[0] if len(parts) == 1 else _distinct(Quads.concat(parts), duplicate_px)[0]
+    order = np.argsort(-quads.n_f, kind="stable")[:most]  # the most edge pixels first
+    return quads.take(order)
 
 
 def refine_quad(grad: Gradients, corners: NDArray[np.float64], *,

@@ -16,7 +16,8 @@ from itertools import zip_longest
 
 import numpy as np
 
-from rovis.segment.boundary import Evaluation, SegmentConfig, Segmentation, evaluate, finish, roi_area
+from rovis.segment.boundary import (Evaluation, SegmentConfig, Segmentation, candidate_pool,
+                                   evaluate, finish, roi_area)
 from rovis.segment.edges import Gradients
 from rovis.segment.quads import Quads, order_corners, quad_overlap
 
@@ -49,12 +50,15 @@ class CascadeController:
         (``SegmentConfig.lsd``), kept like another T_H's where the loop found none."""
         area = roi_area(grad)
         seen: dict[float, Evaluation] = {}
+        pool: list[Quads] = []  # every evaluation's candidates (Segmentation.pool)
 
         def run(log_T_H: float) -> Evaluation:
             lo, hi = np.log(self.cfg.T_H_range[0]), np.log(self.cfg.T_H_range[1])
             key = round(float(np.clip(log_T_H, lo, hi)), 3)
             if key not in seen:
                 ev = evaluate(grad, float(np.exp(key)), self.cfg, area=area, timing=timing)
+                if ev.selection is not None:
+                    pool.append(candidate_pool([ev.selection.quads], self.cfg.pool_size))
                 # an evaluation's candidates (megabytes on busy texture) serve only the
                 # optimum's alternatives: those of one below the best so far are let go
                 top = max(seen.values(), key=lambda e: e.y, default=None)
@@ -84,7 +88,9 @@ class CascadeController:
             # the T_H a warm start evaluates again: the loop's own, not another source's
             self.last_extra_T_H = sorted({ev.T_H for ev in sources
                                           if any(ev is e for e in seen.values())})
-        return finish(grad, best, iterations, timing=timing, alternatives=alternatives)
+        pool += [ev.selection.quads for ev in more if ev.selection is not None]
+        return finish(grad, best, iterations, timing=timing, alternatives=alternatives,
+                      pool=candidate_pool(pool, self.cfg.pool_size))
 
     def _full_search(self, run) -> Evaluation:  # type: ignore[no-untyped-def]
         lo, hi = np.log(self.cfg.T_H_range[0]), np.log(self.cfg.T_H_range[1])

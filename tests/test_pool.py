@@ -1,0 +1,134 @@
+"""Books chosen by stereo among both images' candidate quads (Segmentation.pool,
+rovis.stereo.pool_pairs and flat_rectangle, Detector._from_pool)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import cv2
+import numpy as np
+import pytest
+
+from rovis import geometry
+from rovis.pipeline import DetectConfig, Detector, _is_union
+from rovis.segment import gradients
+from rovis.segment.boundary import Segmentation
+from rovis.segment.lines import Lines
+from rovis.segment.quads import Quads, order_corners
+from rovis.stereo import flat_rectangle, pool_pairs
+from rovis.synth import render, sample_scene
+from rovis.synth.scene import Book
+from rovis.synth.textures import CoverSpec
+
+DESK = np.array([0.0, 0.0, 1.0, 0.0])  # z = 0, normal up
+
+
+def _rectangle(center=(0.4, 0.3), size=(0.20, 0.14), z=0.03, yaw_deg=20.0, tilt_deg=0.0):
+    """World corners (4, 3) of a rectangle at height z, tilted about its x axis."""
+    return geometry.corners_from_pose(
+        (*center, z), _rotation(yaw_deg, tilt_deg), size)
+
+
+def _rotation(yaw_deg, tilt_deg):
+    from scipy.spatial.transform import Rotation
+    return Rotation.from_euler("zx", [yaw_deg, tilt_deg], degrees=True).as_matrix()
+
+
+def test_flat_rectangle_keeps_a_cover_and_names_nothing_else():
+    good = _rectangle()
+    tilted = _rectangle(tilt_deg=10.0)
+    long = _rectangle(size=(0.50, 0.14))
+    tiny = _rectangle(size=(0.20, 0.03))
+    skew = good.copy()  # a parallelogram: the far side slid 5 cm along, angles 70 and 110 deg
+    along = (good[1] - good[0]) / np.linalg.norm(good[1] - good[0])
+    skew[2:] += 0.05 * along
+    low = _rectangle(z=0.0)
+    P = np.stack([good, tilted, long, tiny, skew, low])
+    np.testing.assert_array_equal(flat_rectangle(P, DESK, height_range=(0.006, 0.1)),
+                                  [True, False, False, False, False, False])
+    # without a desk plane only the shape counts: tilted and on the desk are rectangles
+    np.testing.assert_array_equal(flat_rectangle(P), [True, True, False, False, False, True])
+
+
+@pytest.fixture(scope="module")
+def book():
+    """One plain book, 22 × 15 × 3 cm, alone on a clean desk at 500 lx: its true corners,
+    both ideal images' gradients and the rig."""
+    sc = sample_scene(5, lux=500.0, n_books=0)
+    b = Book(center=(0.42, 0.30, 0.03), yaw_deg=25.0, size=(0.22, 0.15, 0.03),
+             cover=CoverSpec(kind="plain", albedo=0.15, seed=2))
+    sc = replace(sc, books=(b,), papers=(), mugs=(), pens=(), cables=())
+    r = render(sc, 5)
+    grads = {}
+    for cam, raw in (("left", r.left), ("right", r.right)):
+        K, D = sc.rig.intrinsics(cam)
+        maps = cv2.initUndistortRectifyMap(K, D, None, K, sc.rig.image_size, cv2.CV_16SC2)
+        grads[cam] = gradients(cv2.remap(raw, *maps, cv2.INTER_LINEAR))
+    return np.array(r.truth["books"][0]["corners"]), grads, sc.rig
+
+
+def _pool(quads):
+    quads = np.array([order_corners(q) for q in quads])
+    n = len(quads)
+    return Quads(np.zeros((n, 4), np.intp), quads, np.ones((n, 4)),
+                 np.arange(n, 0, -1).astype(np.float64) * 100, np.full(n, 50, np.int64))
+
+
+def test_pool_pairs_pairs_the_same_cover_in_both_images(book):
+    P, _, rig = book
+    decoy = _rectangle(center=(0.7, 0.5), size=(0.15, 0.10), z=0.02, yaw_deg=-30.0)
+    left = [geometry.project(rig.Q_L, P), geometry.project(rig.Q_L, decoy)]
+    right = [geometry.project(rig.Q_R, decoy), geometry.project(rig.Q_R, P)]
+    pl, pr = _pool(left).corners, _pool(right).corners
+    pp = pool_pairs(pl, pr, rig.Q_L, rig.Q_R, desk_plane=DESK)
+    assert sorted(zip(pp.left.tolist(), pp.right.tolist())) == [(0, 1), (1, 0)]
+    for a, b, c, s in zip(pp.left, pp.right, pp.corners_right, pp.shift):
+        # the right corners correspond to the left's, and shift says how they were reordered
+        np.testing.assert_allclose(c, np.roll(pr[b], -s, axis=0))
+        X = geometry.triangulate_dlt(rig.Q_L, rig.Q_R, pl[a], c)
+        assert np.abs(X[:, 2] - X[:, 2].mean()).max() < 1e-6  # one flat cover, not a twisted one
+    assert np.all(pp.error_px < 1e-6)
+
+
+def test_pool_pairs_drops_a_tilted_pair_and_a_pattern_on_the_desk(book):
+    P, _, rig = book
+    tilted = _rectangle(center=(0.3, 0.2), tilt_deg=35.0, z=0.05)
+    on_desk = _rectangle(center=(0.6, 0.45), z=-0.03)  # below the loose height gate
+    quads = [P, tilted, on_desk]
+    pp = pool_pairs([geometry.project(rig.Q_L, q) for q in quads],
+                    [geometry.project(rig.Q_R, q) for q in quads], rig.Q_L, rig.Q_R,
+                    desk_plane=DESK)
+    assert pp.left.tolist() == [0] and pp.right.tolist() == [0]
+
+
+def test_a_book_from_the_pools_where_no_selection_kept_it(book):
+    P, grads, rig = book
+    rng = np.random.default_rng(0)
+    # Hough-like corners: about a pixel off; and a decoy on the desk in each image only
+    quads = {cam: geometry.project(Q, P) + rng.normal(0, 0.8, (4, 2))
+             for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
+    segs = {cam: replace(Segmentation.empty(100.0, 30), pool=_pool([q])) for cam, q in quads.items()}
+    det = Detector(rig, DetectConfig())
+    found = det._from_pool(rig, segs, grads, [], DESK, None)
+    assert len(found) == 1
+    pair, got = found[0]
+    center = P.mean(axis=0)
+    assert np.linalg.norm(got.pose.center - center) < 0.005  # metres, from refined corners
+    assert abs(got.pose.size[2] - 0.03) < 0.004
+    assert pair.pooled
+    # where a book already stands the pool adds nothing
+    assert det._from_pool(rig, segs, grads, found, DESK, None) == []
+    # ...and with the pool step off the detector never asks
+    assert not DetectConfig(stereo=replace(DetectConfig().stereo, pool=False)).stereo.pool
+
+
+def test_a_union_of_two_touching_books_gives_way():
+    a = np.array([[0, 0], [100, 0], [100, 60], [0, 60]], np.float64)
+    b = a + [101, 0]
+    union = np.array([[0, 0], [201, 0], [201, 60], [0, 60]], np.float64)
+    quads = np.stack([union, a, b])
+    area = np.array([cv2.contourArea(q.astype(np.float32)) for q in quads])
+    assert _is_union(0, quads, area, 0.3)
+    assert not _is_union(1, quads, area, 0.3)
+    # one book inside a bigger cover is no union (a printed panel on a cover)
+    assert not _is_union(0, quads[:2], area[:2], 0.3)
