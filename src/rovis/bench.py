@@ -72,7 +72,8 @@ def bench_triangulation(n_points: int = 1_000_000, *, repeats: int = 7,
 
 # --------------------------------------------------------------------------- the pipeline
 
-PIPELINE_STAGES = ("marker", "undistort", "gradients", "segmentation", "stereo", "pose", "extent")
+PIPELINE_STAGES = ("marker", "undistort", "gradients", "segmentation", "stereo", "pose", "heightmap",
+                   "extent")
 SEGMENTATION_STEPS = ("canny", "hough", "quads", "refine", "lsd")  # parts of "segmentation"
 
 

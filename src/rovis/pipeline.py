@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from rovis import geometry, marker
 from rovis.calib import StereoRig
 from rovis.extent import ExtentConfig, fit_pair_extent
+from rovis.heightmap import HeightMapConfig, height_map, raised_covers, snap_sides
 from rovis.imageio import to_gray_u8
 from rovis.results import BookDetection, FrameResult, SegmentationInfo
 from rovis.segment import CascadeController, SegmentConfig, Segmentation, gradients
@@ -34,7 +35,7 @@ from rovis.segment.quads import order_corners, quad_overlap
 from rovis.stereo import (Match, StereoConfig, find_in_other_view, flat_rectangle, match_quads,
                           pool_pairs)
 from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pass, on_plane,
-                         texture_height)
+                         sweep_heights, texture_height)
 
 
 # Why a stereo pair of quads makes no book (:meth:`Detector._reconstruct_or_why`): its
@@ -110,6 +111,7 @@ class DetectConfig:
     stereo: StereoConfig = field(default_factory=StereoConfig)
     extent: ExtentConfig = field(default_factory=ExtentConfig)
     sweep: SweepConfig = field(default_factory=SweepConfig)
+    heightmap: HeightMapConfig = field(default_factory=HeightMapConfig)
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -195,7 +197,9 @@ class Pair:
     error_px: float  # stereo match error (0 for a transferred cover)
     transferred: str | None = None
     alternative: bool = False  # from Segmentation.alternatives, after the first pair failed
-    pooled: bool = False  # from the two images' candidate pools (Detector._from_pool)
+    pooled: bool = False  # not a segmented cover of either image: from the candidate pools
+    # (Detector._from_pool, source "pool") or the height map (source "height map")
+    source: str = "segmentation"
 
 
 class Detector:
@@ -329,6 +333,12 @@ class Detector:
             # beyond the paper: books among the candidates neither image's selection kept
             found += self._from_pool(rig, segs, grads, found, desk_plane, texture)
             lap("stereo")
+        if self.cfg.heightmap.enabled and desk_plane is not None:
+            # beyond the paper: books that stand out of the desk in a height map
+            if texture is None:
+                texture = {cam: high_pass(ideal[cam], self.cfg.sweep.sigma_px) for cam in ideal}
+            found += self._from_height_map(rig, grads, found, desk_plane, texture)
+            lap("heightmap")
         # a failed pair whose quad became a book through the one-image search is not lost
         dropped = [(why, pair.left, pair.right) for pair, book, why in books
                    if book is None and not any(
@@ -520,9 +530,70 @@ class Detector:
             quality = float(min(pool["left"].support[i[a]].mean(),
                                 pool["right"].support[j[a]].mean()))
             pair, book, _ = self._reconstruct_or_why(
-                rig, Pair(left[a], right[a], quality, float(pp.error_px[a]), pooled=True),
+                rig, Pair(left[a], right[a], quality, float(pp.error_px[a]), pooled=True,
+                          source="pool"),
                 desk_plane, texture)
             if book is None:
+                continue
+            taken["left"].append(pair.left)
+            taken["right"].append(pair.right)
+            out.append((pair, book))
+        return out
+
+    def _from_height_map(self, rig: StereoRig, grads: dict[str, Gradients],
+                         found: list[tuple[Pair, BookDetection]], desk_plane: NDArray[np.float64],
+                         texture: dict[str, NDArray[np.float32]],
+                         ) -> list[tuple[Pair, BookDetection]]:
+        """Books where no book is yet, from the covers that stand out of the desk in a
+        height map of the workspace (:mod:`rovis.heightmap`).
+
+        Each rectangle's height is refined by its print (a fine sweep), its sides are moved
+        onto the edges both images show (:func:`rovis.heightmap.snap_sides`), and the
+        rectangle, projected into both images and refined to their edges, is put through
+        the pose checks; where the refined corners fail them (a pixel of disparity is a
+        centimetre of height) the projected rectangle itself is.
+        """
+        cfg = self.cfg
+        overlap = cfg.stereo.transfer_max_overlap
+        Q = {"left": rig.Q_L, "right": rig.Q_R}
+        hm = height_map(texture["left"], texture["right"], rig.Q_L, rig.Q_R, desk_plane,
+                        box=grads["left"].box, cfg=cfg.heightmap)
+        taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
+        out: list[tuple[Pair, BookDetection]] = []
+        for P, height, fill in raised_covers(hm, rig.Q_L, desk_plane,
+                                             side_range=(0.8 * cfg.min_cover_side,
+                                                         cfg.max_cover_side),
+                                             cfg=cfg.heightmap):
+            left = geometry.project(rig.Q_L, P)
+            if _shoelace_sign(left) < 0:  # eq. 1: clockwise on screen, top-left first
+                P, left = P[::-1], left[::-1]
+            shift = -int(np.argmin(left.sum(axis=1)))
+            P, left = np.roll(P, shift, axis=0), np.roll(left, shift, axis=0)
+            if any(quad_overlap(geometry.project(Q[cam], P), t) > overlap
+                   for cam in Q for t in taken[cam]):
+                continue
+            step = cfg.heightmap.step
+            near = np.arange(height - step, height + step + 1e-9, cfg.sweep.step)
+            sweep = sweep_heights(texture["left"], texture["right"], rig.Q_L, rig.Q_R, left,
+                                  desk_plane, near[near > 0], inset=cfg.sweep.inset,
+                                  max_samples=cfg.sweep.max_samples)
+            if sweep is not None:
+                height = sweep.best_height
+                P = on_plane(rig.Q_L, left, desk_plane, height)
+            P = snap_sides(P, Q, grads, reach=cfg.heightmap.snap_reach,
+                           inward=cfg.heightmap.snap_inward)
+            exact = Pair(geometry.project(rig.Q_L, P), geometry.project(rig.Q_R, P), float(fill),
+                         0.0, pooled=True, source="height map")
+            refined = replace(exact, left=refine_quad(grads["left"], exact.left),
+                              right=refine_quad(grads["right"], exact.right))
+            pair, book = None, None
+            for trial in (refined, exact):
+                pair, book, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
+                if book is not None:
+                    break
+            # the height map sees print, not covers: a patch narrower than most books is
+            # more often a printed band across a cover than a whole one
+            if book is None or pair is None or min(book.pose.size[:2]) < cfg.heightmap.min_side:
                 continue
             taken["left"].append(pair.left)
             taken["right"].append(pair.right)
@@ -724,6 +795,12 @@ class Detector:
             corners_right_px=rig.distort_points(c_right, "right"),
             reprojection_error_px=float(reproj.mean()),
             quality=pair.quality, stereo_error_px=pair.error_px), ""
+
+
+def _shoelace_sign(q: NDArray[np.float64]) -> float:
+    """Positive when quad ``q`` (4, 2) runs clockwise on screen (y down)."""
+    x, y = q[:, 0], q[:, 1]
+    return float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
 def _is_union(a: int, quads: NDArray[np.float64], area: NDArray[np.float64],

@@ -60,6 +60,10 @@ class SegmentConfig:
     pool_size : int
         Most candidate quads kept per evaluation and per image for stereo to choose from
         (:attr:`Segmentation.pool`), the most edge pixels first.
+    pool_lines : int
+        Beyond the paper: where above ``n_max``, the closed loop also forms candidates
+        from this many Hough lines at its optimum's T_H, for the pool only (eq. 2 and the
+        covers still use ``n_max``).
     """
 
     n_max: int = 100
@@ -76,6 +80,8 @@ class SegmentConfig:
     union: bool = True
     lsd: bool = False
     pool_size: int = 400
+    pool_lines: int = 100
+    pool_min_support: float = 0.7
     quads: QuadConfig = field(default_factory=QuadConfig)
 
 

@@ -89,6 +89,15 @@ class CascadeController:
             self.last_extra_T_H = sorted({ev.T_H for ev in sources
                                           if any(ev is e for e in seen.values())})
         pool += [ev.selection.quads for ev in more if ev.selection is not None]
+        if self.cfg.pool_lines > self.cfg.n_max and best.T_H > 0:
+            # beyond the paper: at the optimum's T_H, the candidates of more lines than eq. 2
+            # allows (a short cover side is outvoted by the desk's long lines), for stereo
+            loose = replace(self.cfg, n_max=self.cfg.pool_lines,
+                            quads=replace(self.cfg.quads, min_support=self.cfg.pool_min_support))
+            wide = evaluate(grad, best.T_H, loose, T_HG=self.cfg.T_HG_min, area=area,
+                            timing=timing)
+            if wide.selection is not None:
+                pool.append(candidate_pool([wide.selection.quads], self.cfg.pool_size))
         return finish(grad, best, iterations, timing=timing, alternatives=alternatives,
                       pool=candidate_pool(pool, self.cfg.pool_size))
 

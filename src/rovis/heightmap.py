@@ -1,0 +1,330 @@
+"""Covers from a height map over the desk: a dense plane sweep (beyond the paper).
+
+The boundary chain finds a cover only where its four sides are Canny edges and Hough
+lines; a photo cover breaks its own sides into texture, a desk-coloured cover shows one
+side faintly, and the quads never form. Stereo sees those books anyway: a book stands out of
+the desk. Through the plane parallel to the desk at height h, the right image maps into the
+left by that plane's homography, and wherever the scene lies on that plane the two agree.
+Swept over the heights books have, the best-agreeing height per pixel (windowed NCC of the
+high-passed images, as :mod:`rovis.sweep` does per cover) is a height map of the workspace:
+a printed or photo cover shows as a filled patch at its height, a plain one as its outline
+(its edges are its only texture), papers and the desk's grain at zero.
+
+Edges along the epipolar lines match at every height, so pixels whose texture runs mostly
+along them testify to nothing (plank seams, a cover's side parallel to the baseline).
+
+:func:`raised_covers` cuts the map into slabs of one height and fits each connected patch
+with the smallest rectangle in the desk plane (:func:`cv2.minAreaRect` on its pixels laid
+on that plane): a cover candidate in world coordinates, which the pipeline projects into
+both images, refines to their edges and puts through the pose checks like any other.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from rovis.segment.edges import Gradients
+from rovis.segment.quads import quad_overlap
+from rovis.sweep import _plane_frame, plane_homography
+
+
+@dataclass(frozen=True)
+class HeightMapConfig:
+    """The height map and the covers cut from it (metres unless noted).
+
+    ``enabled`` turns the step on (it needs the desk plane). Heights from ``min_height`` to
+    ``max_height`` above the desk every ``step`` are swept; ``window_px``: the NCC window
+    (odd, pixels); a pixel counts when its best NCC reaches ``min_ncc`` and its texture
+    across the epipolar lines (mean squared derivative along them, grey levels² of the
+    high-passed image) reaches ``min_texture``; ``raised``: a pixel at least this high is
+    above the desk; a slab is ``slab`` thick; a patch needs ``min_pixels`` pixels;
+    ``min_fill``: the patch's pixels within 3 px of its rectangle's outline or inside it,
+    over the outline's length, must reach this (a cover's outline or more).
+    """
+
+    enabled: bool = True
+    min_height: float = 0.0
+    max_height: float = 0.075
+    step: float = 0.003
+    window_px: int = 9
+    min_ncc: float = 0.6
+    min_texture: float = 4.0
+    raised: float = 0.006
+    slab: float = 0.0045
+    min_pixels: int = 150
+    min_fill: float = 0.4
+    bleed_px: float = 0.0
+    snap_reach: float = 0.012
+    snap_inward: float = 0.012
+    min_side: float = 0.085
+
+    def __post_init__(self) -> None:
+        if not (0 < self.step and self.max_height > self.min_height + self.step
+                and self.window_px >= 3 and self.window_px % 2 == 1 and self.slab > 0):
+            raise ValueError("heightmap: step and slab must be positive, max_height above "
+                             "min_height by more than a step, window_px odd and >= 3, "
+                             f"got {self}")
+
+
+@dataclass(frozen=True, eq=False)
+class HeightMap:
+    """Height above the desk per left ideal pixel, where the two images agree.
+
+    Attributes
+    ----------
+    height : ndarray, shape (H, W), float32
+        Metres above the desk; NaN where no height was found (outside the box, no texture
+        across the epipolar lines, no agreement).
+    heights : ndarray, shape (K,)
+        The swept heights, metres.
+    window_px : int
+        The NCC window's side (pixels): a patch reaches about half of it beyond a cover.
+    """
+
+    height: NDArray[np.float32]
+    heights: NDArray[np.float64]
+    window_px: int
+
+
+def height_map(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: ArrayLike,
+               Q_R: ArrayLike, desk_plane: ArrayLike, *,
+               box: tuple[int, int, int, int] | None = None,
+               cfg: HeightMapConfig = HeightMapConfig()) -> HeightMap:
+    """The plane sweep: each left pixel's best-agreeing height above the desk.
+
+    Parameters
+    ----------
+    left, right : ndarray, shape (H, W), float32
+        Both ideal images, high-passed (:func:`rovis.sweep.high_pass`).
+    Q_L, Q_R : array_like, shape (3, 4)
+        World → ideal pixel projections.
+    desk_plane : array_like, shape (4,)
+        ``[nx, ny, nz, d]``, world, normal up.
+    box : (x0, y0, x1, y1), optional
+        Left pixels to compute (the ROI's bounding box); the whole image by default.
+
+    Returns
+    -------
+    HeightMap
+    """
+    h_img, w_img = left.shape
+    x0, y0, x1, y1 = box if box is not None else (0, 0, w_img, h_img)
+    crop = left[y0:y1, x0:x1]
+    on_desk, n, e1, e2 = _plane_frame(desk_plane)
+    heights = np.arange(cfg.min_height, cfg.max_height + 1e-9, cfg.step)
+    win = (cfg.window_px, cfg.window_px)
+
+    def mean(img: NDArray[np.float32]) -> NDArray[np.float32]:
+        return cv2.boxFilter(img, -1, win, borderType=cv2.BORDER_REFLECT)
+
+    shift = np.array([[1.0, 0.0, x0], [0.0, 1.0, y0], [0.0, 0.0, 1.0]])  # crop → image
+    m_l = mean(crop)
+    v_l = mean(crop * crop) - m_l * m_l
+    best = np.full(crop.shape, -np.inf, np.float32)
+    arg = np.zeros(crop.shape, np.int32)
+    motion = None
+    for k, h in enumerate(heights):
+        origin = on_desk + h * n
+        H = (plane_homography(Q_R, origin, e1, e2)
+             @ np.linalg.inv(plane_homography(Q_L, origin, e1, e2)) @ shift)  # crop → right
+        if k == 0:
+            motion = H
+        warped = cv2.warpPerspective(right, H, crop.shape[::-1],
+                                     flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
+        m_r = mean(warped)
+        v_r = mean(warped * warped) - m_r * m_r
+        ncc = (mean(crop * warped) - m_l * m_r) / np.sqrt(np.maximum(v_l * v_r, 1e-6))
+        better = ncc > best
+        best[better] = ncc[better]
+        arg[better] = k
+    # the epipolar direction at the box's centre: where the heights move a pixel
+    assert motion is not None
+    centre = np.array([0.5 * (x1 - x0), 0.5 * (y1 - y0), 1.0])
+    p0, p1 = motion @ centre, H @ centre
+    d = p1[:2] / p1[2] - p0[:2] / p0[2]
+    d = d / max(float(np.linalg.norm(d)), 1e-12)
+    gx = cv2.Sobel(crop, cv2.CV_32F, 1, 0, ksize=3) / 8.0
+    gy = cv2.Sobel(crop, cv2.CV_32F, 0, 1, ksize=3) / 8.0
+    along = mean((gx * np.float32(d[0]) + gy * np.float32(d[1])) ** 2)
+    ok = (best >= cfg.min_ncc) & (along >= cfg.min_texture)
+    height = np.full((h_img, w_img), np.nan, np.float32)
+    height[y0:y1, x0:x1] = np.where(ok, heights[arg].astype(np.float32), np.nan)
+    return HeightMap(height, heights, cfg.window_px)
+
+
+def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
+                  side_range: tuple[float, float] = (0.05, 0.45),
+                  cfg: HeightMapConfig = HeightMapConfig(),
+                  ) -> list[tuple[NDArray[np.float64], float, float]]:
+    """Cover candidates: rectangles fitted to patches of one height above the desk.
+
+    Each swept height above ``cfg.raised`` is a slab (± ``cfg.slab``); the slab's pixels
+    are joined into patches (8-connected, after closing 2 px gaps) and each patch of at
+    least ``cfg.min_pixels`` is laid on the plane at that height and fitted with its
+    smallest rectangle. Rectangles with sides in ``side_range`` whose outline the patch
+    fills (``cfg.min_fill``) are kept, the most pixels first; one overlapping a kept one
+    by more than half (in the image) is the same cover seen in a neighbouring slab.
+
+    Returns
+    -------
+    list of (corners, height, fill)
+        World corners (4, 3) of each rectangle at its height (metres) and the share of its
+        outline the patch fills, most pixels first.
+    """
+    Q_L = np.asarray(Q_L, dtype=np.float64)
+    on_desk, n, e1, e2 = _plane_frame(desk_plane)
+    height = hm.height
+    # the top height also holds everything above it (a mug's rim): in no slab
+    valid = np.isfinite(height) & (height < hm.heights[-1] - 0.5 * cfg.step)
+    found: list[tuple[int, NDArray[np.float64], float, float, NDArray[np.float64]]] = []
+    kernel = np.ones((5, 5), np.uint8)
+    for h in hm.heights[(hm.heights >= cfg.raised) & (hm.heights < hm.heights[-1] - 0.5 * cfg.step)]:
+        slab = (valid & (np.abs(np.where(valid, height, 0.0) - h) <= cfg.slab)).astype(np.uint8)
+        if cv2.countNonZero(slab) < cfg.min_pixels:
+            continue
+        joined = cv2.morphologyEx(slab, cv2.MORPH_CLOSE, kernel)
+        count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
+        origin = on_desk + h * n
+        to_plane = np.linalg.inv(plane_homography(Q_L, origin, e1, e2))  # pixel → (u, v)
+        for c in range(1, count):
+            if stats[c, cv2.CC_STAT_AREA] < cfg.min_pixels:
+                continue
+            ys, xs = np.nonzero((labels == c) & (slab > 0))
+            if len(xs) < cfg.min_pixels:
+                continue
+            uv = _apply(to_plane, np.column_stack([xs, ys]).astype(np.float64))
+            (cu, cv_), (a, b), angle = cv2.minAreaRect(uv.astype(np.float32))
+            # a window straddling a cover's edge still agrees at the cover's height: the
+            # patch reaches half a window beyond the cover on every side
+            px = np.array([[xs.mean(), ys.mean()], [xs.mean() + 1.0, ys.mean()],
+                           [xs.mean(), ys.mean() + 1.0]])
+            q = _apply(to_plane, px)
+            metres_per_px = 0.5 * (np.linalg.norm(q[1] - q[0]) + np.linalg.norm(q[2] - q[0]))
+            a, b = a - cfg.bleed_px * metres_per_px, b - cfg.bleed_px * metres_per_px
+            if not (side_range[0] <= min(a, b) and max(a, b) <= side_range[1]):
+                continue
+            rect = cv2.boxPoints(((cu, cv_), (a, b), angle)).astype(np.float64)  # (4, 2) u, v
+            fill = _outline_fill(uv, rect)
+            if fill < cfg.min_fill:
+                continue
+            corners = origin + rect[:, :1] * e1 + rect[:, 1:] * e2
+            px = _apply(np.linalg.inv(to_plane), rect)
+            found.append((len(xs), corners, float(h), fill, px))
+    found.sort(key=lambda f: -f[0])
+    kept: list[tuple[int, NDArray[np.float64], float, float, NDArray[np.float64]]] = []
+    for item in found:
+        if not any(quad_overlap(item[4], k[4]) > 0.5 for k in kept):
+            kept.append(item)
+    return [(corners, h, fill) for _, corners, h, fill, _ in kept]
+
+
+def _apply(H: NDArray[np.float64], p: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Points (N, 2) through homography H."""
+    q = np.column_stack([p, np.ones(len(p))]) @ H.T
+    return q[:, :2] / q[:, 2:]
+
+
+def _outline_fill(uv: NDArray[np.float64], rect: NDArray[np.float64], band: float = 0.004,
+                  cell: float = 0.004) -> float:
+    """The share of the rectangle's outline (cells of ``cell`` metres along it) with patch
+    points within ``band`` of it or inside: a cover's outline fills it, a stray blob does
+    not."""
+    fill = []
+    for k in range(4):
+        a, b = rect[k], rect[(k + 1) % 4]
+        length = float(np.linalg.norm(b - a))
+        if length < 1e-6:
+            return 0.0
+        d = (b - a) / length
+        normal = np.array([-d[1], d[0]])
+        rel = uv - a
+        t, s = rel @ d, rel @ normal
+        inward = 1.0 if (rect.mean(axis=0) - a) @ normal > 0 else -1.0
+        near = (t >= 0) & (t <= length) & (s * inward >= -band) & (s * inward <= 2 * band)
+        cells = np.unique(np.floor(t[near] / cell).astype(int))
+        fill.append(len(cells) / max(int(np.ceil(length / cell)), 1))
+    return float(np.mean(fill))
+
+
+def snap_sides(P: ArrayLike, Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients], *,
+               reach: float = 0.012, inward: float = 0.012, step: float = 0.001,
+               samples: int = 24) -> NDArray[np.float64]:
+    """A cover rectangle's sides moved, in its plane, onto the edge both images show.
+
+    Each side of ``P`` (4, 3) is slid along its outward normal within the cover's plane by
+    up to ``reach`` metres outward and ``inward`` metres inward; projected into each image, it scores the median
+    gradient across it there, and the offset whose weaker image scores highest wins. An
+    edge at another height (a page block's foot on the desk, a neighbour's cover) lies
+    elsewhere on this plane in the two images and scores in one of them only. A side facing
+    the camera takes the innermost strong edge: beyond it lies the page block, whose foot
+    often runs along the baseline, where stereo cannot tell it from the cover's edge.
+
+    Parameters
+    ----------
+    P : array_like, shape (4, 3)
+        World corners of a rectangle (a height-map cover), in order around it.
+    Q : dict of ndarray, shape (3, 4)
+        ``{"left": Q_L, "right": Q_R}``.
+    grads : dict of Gradients
+        Both ideal images' gradients.
+
+    Returns
+    -------
+    ndarray, shape (4, 3)
+        The moved rectangle's corners (the neighbouring sides' lines stay; the corners are
+        where the moved sides meet them).
+    """
+    P = np.asarray(P, dtype=np.float64).reshape(4, 3).copy()
+    offsets = np.arange(-inward, reach + 1e-9, step)
+    u = np.linspace(0.15, 0.85, samples)
+    centre = P.mean(axis=0)
+    normal = np.cross(P[1] - P[0], P[3] - P[0])
+    normal /= np.linalg.norm(normal)
+    moves = np.zeros(4)
+    M = Q["left"][:, :3]
+    camera = -np.linalg.solve(M, Q["left"][:, 3])  # the left camera's centre, world
+    for s in range(4):
+        a, b = P[s], P[(s + 1) % 4]
+        out = np.cross(b - a, normal)
+        out /= np.linalg.norm(out)
+        if out @ (centre - a) > 0:
+            out = -out
+        pts = a + u[:, None] * (b - a)  # (S, 3) along the side
+        moved = pts[None] + offsets[:, None, None] * out  # (O, S, 3)
+        worst = None
+        for cam in ("left", "right"):
+            px = _project(Q[cam], moved.reshape(-1, 3)).reshape(len(offsets), samples, 2)
+            along = px[:, -1] - px[:, 0]
+            n_img = np.stack([-along[:, 1], along[:, 0]], axis=1)
+            n_img /= np.maximum(np.linalg.norm(n_img, axis=1, keepdims=True), 1e-9)
+            gx, gy = grads[cam].sample(px[..., 0], px[..., 1])
+            score = np.median(np.abs(gx * n_img[:, None, 0] + gy * n_img[:, None, 1]), axis=1)
+            worst = score if worst is None else np.minimum(worst, score)
+        assert worst is not None
+        best = int(np.argmax(worst))
+        if out @ (camera - 0.5 * (a + b)) > 0:
+            # a side facing the camera shows the page block beyond it, whose foot is an
+            # edge too (and often along the baseline, where stereo cannot tell it): the
+            # cover's edge is the innermost strong one
+            peak = (worst >= 0.5 * worst[best]) & (worst >= np.roll(worst, 1)) \
+                & (worst >= np.roll(worst, -1))
+            best = int(np.flatnonzero(peak)[0]) if peak.any() else best
+        moves[s] = offsets[best]
+    # each side's line moved by its offset; corner s joins side s - 1 and side s
+    out_dirs = []
+    for s in range(4):
+        a, b = P[s], P[(s + 1) % 4]
+        o = np.cross(b - a, normal)
+        o /= np.linalg.norm(o)
+        out_dirs.append(-o if o @ (centre - a) > 0 else o)
+    return np.array([P[s] + moves[s] * out_dirs[s] + moves[s - 1] * out_dirs[s - 1]
+                     for s in range(4)])
+
+
+def _project(Q: NDArray[np.float64], X: NDArray[np.float64]) -> NDArray[np.float64]:
+    h = X @ Q[:, :3].T + Q[:, 3]
+    return h[:, :2] / h[:, 2:]

@@ -1,0 +1,108 @@
+"""The height map over the desk and the covers cut from it (rovis.heightmap), and the
+pipeline step that makes books of them (Detector._from_height_map)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import cv2
+import numpy as np
+import pytest
+
+from rovis import geometry
+from rovis.heightmap import HeightMapConfig, height_map, raised_covers
+from rovis.pipeline import DetectConfig, Detector, with_settings
+from rovis.sweep import high_pass
+from rovis.synth import render, sample_scene
+from rovis.synth.scene import Book
+from rovis.synth.textures import CoverSpec
+
+HEIGHT = 0.025  # metres
+
+
+@pytest.fixture(scope="module")
+def photo_book():
+    """A photo cover, 20 × 14 × 2.5 cm, alone on the desk at 300 lx: the scene, its
+    rendering and both ideal images high-passed."""
+    sc = sample_scene(11, lux=300.0, n_books=0)
+    b = Book(center=(0.40, 0.32, HEIGHT), yaw_deg=30.0, size=(0.20, 0.14, HEIGHT),
+             cover=CoverSpec(kind="photo", albedo=0.4, seed=2))
+    sc = replace(sc, books=(b,), papers=(), mugs=(), pens=(), cables=())
+    r = render(sc, 11)
+    tex = {}
+    for cam, raw in (("left", r.left), ("right", r.right)):
+        K, D = sc.rig.intrinsics(cam)
+        maps = cv2.initUndistortRectifyMap(K, D, None, K, sc.rig.image_size, cv2.CV_16SC2)
+        tex[cam] = high_pass(cv2.remap(raw, *maps, cv2.INTER_LINEAR), 1.5)
+    return sc, r, tex
+
+
+def _cover_mask(rig, P, shape, inset_px=8):
+    """The cover's pixels in the left image, shrunk by ``inset_px`` (grown if negative)."""
+    mask = np.zeros(shape, np.uint8)
+    cv2.fillConvexPoly(mask, np.rint(geometry.project(rig.Q_L, P)).astype(np.int32), 1)
+    kernel = np.ones((2 * abs(inset_px) + 1,) * 2, np.uint8)
+    return (cv2.erode(mask, kernel) if inset_px >= 0 else cv2.dilate(mask, kernel)) > 0
+
+
+def test_the_height_map_reads_the_cover_and_the_desk(photo_book):
+    sc, r, tex = photo_book
+    P = np.array(r.truth["books"][0]["corners"])
+    desk = np.asarray(r.truth["desk_plane"])
+    hm = height_map(tex["left"], tex["right"], sc.rig.Q_L, sc.rig.Q_R, desk)
+    cover = _cover_mask(sc.rig, P, hm.height.shape)
+    inside = hm.height[cover]
+    assert np.isfinite(inside).mean() > 0.5  # the print is texture enough
+    assert abs(np.nanmedian(inside) - HEIGHT) < 0.004  # metres
+    # the desk around the book (its grain): at the desk, where it says anything
+    far = ~_cover_mask(sc.rig, P, hm.height.shape, inset_px=-60)
+    desk_h = hm.height[far & np.isfinite(hm.height)]
+    assert len(desk_h) > 1000 and np.median(desk_h) < 0.004
+
+
+def test_raised_covers_finds_the_book_as_a_rectangle(photo_book):
+    sc, r, tex = photo_book
+    P = np.array(r.truth["books"][0]["corners"])
+    desk = np.asarray(r.truth["desk_plane"])
+    hm = height_map(tex["left"], tex["right"], sc.rig.Q_L, sc.rig.Q_R, desk)
+    covers = raised_covers(hm, sc.rig.Q_L, desk)
+    assert len(covers) >= 1
+    corners, h, fill = covers[0]
+    assert abs(h - HEIGHT) <= 0.0045 and 0.4 <= fill <= 1.0
+    assert np.linalg.norm(corners.mean(axis=0)[:2] - P.mean(axis=0)[:2]) < 0.01
+    sides = sorted(np.linalg.norm(corners - np.roll(corners, -1, axis=0), axis=1))
+    np.testing.assert_allclose(sides, [0.14, 0.14, 0.20, 0.20], atol=0.015)
+
+
+def test_an_empty_desk_raises_nothing():
+    sc = sample_scene(12, lux=300.0, n_books=0)
+    sc = replace(sc, books=(), mugs=(), pens=(), cables=())
+    r = render(sc, 12)
+    tex = {cam: high_pass(img, 1.5) for cam, img in (("left", r.left), ("right", r.right))}
+    desk = np.asarray(r.truth["desk_plane"])
+    hm = height_map(tex["left"], tex["right"], sc.rig.Q_L, sc.rig.Q_R, desk)
+    assert raised_covers(hm, sc.rig.Q_L, desk) == []
+    flat = np.zeros((768, 1024), np.float32)  # no texture at all: no height anywhere
+    hm = height_map(flat, flat, sc.rig.Q_L, sc.rig.Q_R, desk)
+    assert not np.isfinite(hm.height).any()
+
+
+def test_the_pipeline_finds_the_photo_book_from_the_height_map_alone(photo_book):
+    sc, r, _ = photo_book
+    P = np.array(r.truth["books"][0]["corners"])
+    # the boundary chain's own covers and the pools off: only the height map can find it
+    settings = ["method=open", "segment.open_T_H=2000", "stereo.pool=false"]
+    res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
+    assert len(res.objects) == 1
+    book = res.objects[0]
+    assert np.linalg.norm(book.pose.center - P.mean(axis=0)) < 0.01  # metres
+    assert abs(book.pose.size[2] - HEIGHT) < 0.005
+    off = Detector(sc.rig, with_settings(DetectConfig(), settings + ["heightmap.enabled=false"]))
+    assert len(off.detect(r.left, r.right).objects) == 0
+
+
+def test_bad_settings_are_refused():
+    with pytest.raises(ValueError, match="heightmap"):
+        HeightMapConfig(window_px=8)
+    with pytest.raises(ValueError, match="heightmap"):
+        HeightMapConfig(step=0.0)
