@@ -18,7 +18,7 @@ from rovis.synth import write_dataset
 DETECTION_KEYS = {"objects", "desk_plane", "world_frame", "segmentation", "timing_ms", "warnings"}
 OBJECT_KEYS = {"id", "center", "R", "quaternion_xyzw", "euler_zxz_deg", "yaw_deg", "size",
                "corners_world", "corners_left_px", "corners_right_px", "reprojection_error_px",
-               "quality"}
+               "quality", "source"}
 
 
 @pytest.fixture(scope="module")

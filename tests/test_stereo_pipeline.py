@@ -178,8 +178,9 @@ def test_detect_returns_the_design_json_for_a_scene(scene):
     for obj in doc["objects"]:
         for key in ("id", "center", "R", "quaternion_xyzw", "euler_zxz_deg", "yaw_deg", "size",
                     "corners_world", "corners_left_px", "corners_right_px",
-                    "reprojection_error_px", "quality"):
+                    "reprojection_error_px", "quality", "source"):
             assert key in obj
+        assert obj["source"] in ("segmentation", "one image", "candidates", "height map")
     # every reported book is a real one, within the 1 cm grasp tolerance
     truth = np.array([b["center"] for b in r.truth["books"]])
     for obj in res.objects:

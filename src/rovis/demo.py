@@ -144,7 +144,7 @@ def _report(scene: Any, result: FrameResult, books: list[dict[str, Any]],
         left = (f"{'id':>3}  {'x [m]':>6} {'y [m]':>6} {'z [m]':>6}  {'yaw [°]':>7}  "
                 f"{'L x W [mm]':>10}  {'h [mm]':>6}  ")
         right = (f"  {'truth':<4} {'X [mm]':>6} {'Y [mm]':>6} {'Z [mm]':>6}  {'yaw [°]':>7}  "
-                 f"{'L [mm]':>6} {'W [mm]':>6} {'h [mm]':>6}")
+                 f"{'L [mm]':>6} {'W [mm]':>6} {'h [mm]':>6}  found by")
         lines += ["", f"{'detected':<{len(left)}}|  error against the true book",
                   left + "|" + right]
         for k, obj in enumerate(result.objects):
@@ -156,9 +156,10 @@ def _report(scene: Any, result: FrameResult, books: list[dict[str, Any]],
                 e = {key: v * (1e3 if key != "yaw" else 1.0)
                      for key, v in book_errors(obj, books[truth_of[k]]).items()}
                 row += (f"  #{truth_of[k]:<3} {e['dx']:6.1f} {e['dy']:6.1f} {e['dz']:6.1f}"
-                        f"  {e['yaw']:7.2f}  {e['long']:6.1f} {e['short']:6.1f} {e['height']:6.1f}")
+                        f"  {e['yaw']:7.2f}  {e['long']:6.1f} {e['short']:6.1f} {e['height']:6.1f}"
+                        f"  {obj.source}")
             else:
-                row += "  none within 5 cm: a false detection"
+                row += f"  none within 5 cm: a false detection ({obj.source})"
             lines.append(row)
     found = {t for _, t in matches}
     missed = [i for i in range(len(books)) if i not in found]

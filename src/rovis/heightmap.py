@@ -83,11 +83,14 @@ class HeightMap:
         The swept heights, metres.
     window_px : int
         The NCC window's side (pixels): a patch reaches about half of it beyond a cover.
+    box : (x0, y0, x1, y1)
+        The pixels swept (outside it ``height`` is NaN).
     """
 
     height: NDArray[np.float32]
     heights: NDArray[np.float64]
     window_px: int
+    box: tuple[int, int, int, int]
 
 
 def height_map(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: ArrayLike,
@@ -153,7 +156,7 @@ def height_map(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Array
     ok = (best >= cfg.min_ncc) & (along >= cfg.min_texture)
     height = np.full((h_img, w_img), np.nan, np.float32)
     height[y0:y1, x0:x1] = np.where(ok, heights[arg].astype(np.float32), np.nan)
-    return HeightMap(height, heights, cfg.window_px)
+    return HeightMap(height, heights, cfg.window_px, (x0, y0, x1, y1))
 
 
 def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
@@ -177,7 +180,8 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
     """
     Q_L = np.asarray(Q_L, dtype=np.float64)
     on_desk, n, e1, e2 = _plane_frame(desk_plane)
-    height = hm.height
+    x0, y0, x1, y1 = hm.box  # work on the swept part only
+    height = hm.height[y0:y1, x0:x1]
     # the top height also holds everything above it (a mug's rim): in no slab
     valid = np.isfinite(height) & (height < hm.heights[-1] - 0.5 * cfg.step)
     found: list[tuple[int, NDArray[np.float64], float, float, NDArray[np.float64]]] = []
@@ -189,13 +193,17 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
         joined = cv2.morphologyEx(slab, cv2.MORPH_CLOSE, kernel)
         count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
         origin = on_desk + h * n
-        to_plane = np.linalg.inv(plane_homography(Q_L, origin, e1, e2))  # pixel → (u, v)
+        shift = np.array([[1.0, 0.0, x0], [0.0, 1.0, y0], [0.0, 0.0, 1.0]])  # crop → image
+        to_plane = np.linalg.inv(plane_homography(Q_L, origin, e1, e2)) @ shift  # → (u, v)
         for c in range(1, count):
             if stats[c, cv2.CC_STAT_AREA] < cfg.min_pixels:
                 continue
-            ys, xs = np.nonzero((labels == c) & (slab > 0))
+            bx, by, bw, bh = stats[c, :4]
+            ys, xs = np.nonzero((labels[by:by + bh, bx:bx + bw] == c)
+                                & (slab[by:by + bh, bx:bx + bw] > 0))
             if len(xs) < cfg.min_pixels:
                 continue
+            xs, ys = xs + bx, ys + by
             uv = _apply(to_plane, np.column_stack([xs, ys]).astype(np.float64))
             (cu, cv_), (a, b), angle = cv2.minAreaRect(uv.astype(np.float32))
             # a window straddling a cover's edge still agrees at the cover's height: the

@@ -198,8 +198,8 @@ class Pair:
     transferred: str | None = None
     alternative: bool = False  # from Segmentation.alternatives, after the first pair failed
     pooled: bool = False  # not a segmented cover of either image: from the candidate pools
-    # (Detector._from_pool, source "pool") or the height map (source "height map")
-    source: str = "segmentation"
+    # (Detector._from_pool, source "candidates") or the height map (source "height map")
+    source: str = "segmentation"  # BookDetection.source ("one image" from ``transferred``)
 
 
 class Detector:
@@ -531,7 +531,7 @@ class Detector:
                                 pool["right"].support[j[a]].mean()))
             pair, book, _ = self._reconstruct_or_why(
                 rig, Pair(left[a], right[a], quality, float(pp.error_px[a]), pooled=True,
-                          source="pool"),
+                          source="candidates"),
                 desk_plane, texture)
             if book is None:
                 continue
@@ -794,7 +794,8 @@ class Detector:
             corners_left_px=rig.distort_points(c_left, "left"),
             corners_right_px=rig.distort_points(c_right, "right"),
             reprojection_error_px=float(reproj.mean()),
-            quality=pair.quality, stereo_error_px=pair.error_px), ""
+            quality=pair.quality, stereo_error_px=pair.error_px,
+            source="one image" if pair.transferred else pair.source), ""
 
 
 def _shoelace_sign(q: NDArray[np.float64]) -> float:

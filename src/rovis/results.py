@@ -63,6 +63,12 @@ class BookDetection:
     stereo_error_px : float
         Mean distance of the right corners to where the left corners allow them (0 for a
         cover found in one image's segmentation only).
+    source : str
+        How the cover was found: ``"segmentation"`` (each image's segmentation kept it),
+        ``"one image"`` (one image's, then found in the other), ``"candidates"`` (a pair
+        of candidate quads neither image's selection kept, chosen by stereo) or ``"height
+        map"`` (a patch standing out of the desk in the stereo height map; its outline is
+        the least exact: see docs/stereo.md).
     """
 
     id: int
@@ -73,6 +79,7 @@ class BookDetection:
     reprojection_error_px: float
     quality: float
     stereo_error_px: float = 0.0
+    source: str = "segmentation"
 
     def to_dict(self) -> dict[str, Any]:
         out = pose_to_dict(self.pose, id=self.id)
@@ -80,7 +87,7 @@ class BookDetection:
         out.update(corners_left_px=_round(self.corners_left_px, 3),
                    corners_right_px=_round(self.corners_right_px, 3),
                    reprojection_error_px=_round(self.reprojection_error_px, 4),
-                   quality=_round(self.quality, 4))
+                   quality=_round(self.quality, 4), source=self.source)
         return out
 
 
@@ -138,14 +145,14 @@ class FrameResult:
 
 def books_table(objects: list[BookDetection]) -> str:
     """A fixed-width text table of detected books, one row each: id, centre (m), yaw (°),
-    cover size and height (mm), mean reprojection error (px)."""
+    cover size and height (mm), mean reprojection error (px), how it was found."""
     header = (" id   center x      y      z [m]   yaw [°]   size [mm]    height [mm]"
-              "   reproj [px]")
+              "   reproj [px]   found by")
     rows = [header]
     for obj in objects:
         c, s = obj.pose.center, obj.pose.size * 1000.0
         height = f"{s[2]:8.1f}" if np.isfinite(s[2]) else "       -"
         rows.append(f"{obj.id:>3}   {c[0]:8.3f} {c[1]:6.3f} {c[2]:6.3f}   {obj.pose.yaw_deg:7.1f}"
                     f"   {s[0]:5.0f} x {s[1]:3.0f}   {height}"
-                    f"      {obj.reprojection_error_px:8.2f}")
+                    f"      {obj.reprojection_error_px:8.2f}   {obj.source}")
     return "\n".join(rows)
