@@ -106,6 +106,28 @@ def test_summary_statistics_and_recall_of_well_visible_books():
     assert ev.lux_band(10.0) == "<15 lx" and ev.lux_band(None) is None
 
 
+def test_errors_and_false_positives_by_how_each_book_was_found():
+    books = [_book([0.1, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),
+             _book([0.4, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03])]
+    dets = [_book([0.101, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),
+            _book([0.42, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),  # 2 cm off: past the tolerance
+            _book([0.8, 0.5, 0.03], 0.0, [0.2, 0.15, 0.03])]  # a false positive
+    score = {**score_books(books, dets), "sources": ["segmentation", "height map", "height map"]}
+    record = {"books": [{"visible": True}] * 2, "methods": {"closed": score}}
+    by = ev.source_breakdown([record, record], ["closed"])["closed"]
+    assert list(by) == ["height map", "segmentation"]  # the most detections first
+    hm, seg = by["height map"], by["segmentation"]
+    assert (hm["detections"], hm["matched"], hm["false_positives"], hm["over_1cm"]) == (4, 2, 2, 2)
+    assert (seg["detections"], seg["matched"], seg["false_positives"], seg["over_1cm"]) == (2, 2, 0, 0)
+    assert hm["errors"]["x"]["max"] == pytest.approx(0.02)
+    assert seg["errors"]["x"]["max"] == pytest.approx(0.001)
+    text = ev.source_table({"closed": by})
+    assert "found by" in text and "height map" in text
+    # a results.json written before sources were recorded: nothing to say
+    old = {"books": record["books"], "methods": {"closed": score_books(books, dets)}}
+    assert ev.source_breakdown([old], ["closed"]) == {"closed": {}}
+
+
 def test_paper_figures_beside_ours():
     assert ev.paper_reference("closed", "table1") is ev.PAPER_TABLE_I
     assert ev.paper_reference("open", "table2").max == (0.6294, 0.2513, 0.7881, 34.0)

@@ -323,7 +323,8 @@ def score_scene(scene_dir: str | os.PathLike[str], detectors: Mapping[str, Any])
     dict
         ``scene`` (the folder's name), the scene's ``protocol``, ``lux``, ``light``,
         ``exposure`` and true ``books``, per method the :func:`score_books` record under
-        ``methods``, and ``timing_ms`` (per method, the pipeline's wall time). A scene that
+        ``methods`` (with ``sources``: per detection, how it was found,
+        :attr:`rovis.results.BookDetection.source`), and ``timing_ms`` (per method, the pipeline's wall time). A scene that
         cannot be scored is ``{"scene": name, "skipped": reason}`` instead.
     """
     name = Path(scene_dir).name
@@ -346,6 +347,7 @@ def score_scene(scene_dir: str | os.PathLike[str], detectors: Mapping[str, Any])
         record["timing_ms"][method] = 1e3 * (time.perf_counter() - t0)
         dets = [Book.from_pose(obj.pose, obj.id) for obj in result.objects]
         record["methods"][method] = score_books(truth, dets, up=up)
+        record["methods"][method]["sources"] = [obj.source for obj in result.objects]
     return record
 
 
@@ -423,7 +425,9 @@ class Evaluation:
                 "settings": {"match_radius_m": MATCH_RADIUS_M, "visible_min": VISIBLE_MIN,
                              "square_tol_m": SQUARE_TOL_M, "detector": list(self.settings)},
                 "n_scenes": len(self.scenes), "n_skipped": len(self.skipped),
-                "summary": self.summary(), "breakdown": breakdown(self.scenes, self.methods),
+                "summary": self.summary(),
+                "breakdown": {**breakdown(self.scenes, self.methods),
+                              "source": source_breakdown(self.scenes, self.methods)},
                 "skipped": list(self.skipped), "scenes": list(self.scenes)}
 
     @classmethod
@@ -667,6 +671,39 @@ def breakdown(records: Sequence[Mapping[str, Any]], methods: Sequence[str]) -> d
     return out
 
 
+def source_breakdown(records: Sequence[Mapping[str, Any]], methods: Sequence[str]) -> dict[str, Any]:
+    """Per method and per source (how each detection was found,
+    :attr:`rovis.results.BookDetection.source`): ``detections``, ``matched``,
+    ``false_positives``, ``over_1cm`` (matched books more than 1 cm off along some axis:
+    beyond the grasp tolerance) and the ``errors`` of the matched ones (as
+    :func:`summarize_method`). Records without sources (an older results.json) count
+    nothing."""
+    out: dict[str, Any] = {}
+    for method in methods:
+        groups: dict[str, dict[str, Any]] = {}
+        for rec in records:
+            score = rec["methods"].get(method)
+            if score is None or "sources" not in score:
+                continue
+            matched = {m["detection"]: m for m in score["matches"]}
+            for j, source in enumerate(score["sources"]):
+                g = groups.setdefault(source, {"detections": 0, "matched": 0, "over_1cm": 0,
+                                               "errs": {k: [] for k in ERROR_KEYS}})
+                g["detections"] += 1
+                if j in matched:
+                    g["matched"] += 1
+                    e = matched[j]["errors"]
+                    g["over_1cm"] += max(abs(e[c]) for c in ("x", "y", "z")) > 0.01
+                    for k in ERROR_KEYS:
+                        g["errs"][k].append(e[k])
+        out[method] = {src: {"detections": g["detections"], "matched": g["matched"],
+                             "false_positives": g["detections"] - g["matched"],
+                             "over_1cm": g["over_1cm"],
+                             "errors": {k: _stats(v) for k, v in g["errs"].items()}}
+                       for src, g in sorted(groups.items(), key=lambda kv: -kv[1]["detections"])}
+    return out
+
+
 # --------------------------------------------------------------------------- text
 
 
@@ -746,10 +783,25 @@ def breakdown_table(groups: Mapping[str, Mapping[str, Mapping[str, Any]]], title
     return "\n".join(rows)
 
 
+def source_table(sources: Mapping[str, Mapping[str, Mapping[str, Any]]]) -> str:
+    """Detections, matches, false positives and errors per method and source."""
+    rows = [f"{'method':<14}{'found by':<14}{'detections':>11}{'matched':>8}{'FP':>5}"
+            f"{'>1 cm':>6}{'|X_e| m':>9}{'|Y_e| m':>9}{'|Z_e| m':>9}"
+            f"{'max|X_e|':>10}{'max|Y_e|':>10}{'max|Z_e|':>10}"]
+    for method, per_source in sources.items():
+        for k, (src, s) in enumerate(per_source.items()):
+            e = s["errors"]
+            rows.append(f"{method if k == 0 else '':<14}{src:<14}{s['detections']:>11}"
+                        f"{s['matched']:>8}{s['false_positives']:>5}{s['over_1cm']:>6}"
+                        + "".join(_num(e[c]["mean"], 9, 4) for c in ("x", "y", "z"))
+                        + "".join(_num(e[c]["max"], 10, 4) for c in ("x", "y", "z")))
+    return "\n".join(rows)
+
+
 def report(ev: Evaluation) -> str:
     """The text ``rovis eval`` prints: per method the Tables I/II block, a summary of all
     methods, and the breakdowns by light level, light and exposure (means, and the largest
-    position errors in metres)."""
+    position errors in metres), and by how each detection was found."""
     summary = ev.summary()
     parts = [method_table(m, summary[m], paper_reference(m, ev.protocol)) for m in ev.methods]
     if ev.settings:
@@ -760,6 +812,10 @@ def report(ev: Evaluation) -> str:
     for name, title in (("lux", "light level"), ("light", "light"), ("exposure", "exposure")):
         if len(bd[name]) > 1 or (name == "lux" and bd[name]):
             parts.append(f"By {title}:\n" + breakdown_table(bd[name], title))
+    sources = source_breakdown(ev.scenes, ev.methods)
+    if any(sources.values()):
+        parts.append("By how each detection was found (>1 cm: matched books beyond the grasp "
+                     "tolerance on some axis):\n" + source_table(sources))
     return "\n\n".join(parts)
 
 
