@@ -44,6 +44,11 @@ class HeightMapConfig:
     above the desk; a slab is ``slab`` thick; a patch needs ``min_pixels`` pixels;
     ``min_fill``: the patch's pixels within 3 px of its rectangle's outline or inside it,
     over the outline's length, must reach this (a cover's outline or more).
+
+    The pipeline's use of the rectangles (:meth:`rovis.pipeline.Detector._from_height_map`):
+    ``snap_reach``, ``snap_inward``: how far each side may move onto an edge
+    (:func:`snap_sides`); ``min_side``: a cover narrower than this is not taken (a printed
+    band across a cover, more often than a whole one).
     """
 
     enabled: bool = True
@@ -57,7 +62,6 @@ class HeightMapConfig:
     slab: float = 0.0045
     min_pixels: int = 150
     min_fill: float = 0.4
-    bleed_px: float = 0.0
     snap_reach: float = 0.012
     snap_inward: float = 0.012
     min_side: float = 0.085
@@ -81,15 +85,12 @@ class HeightMap:
         across the epipolar lines, no agreement).
     heights : ndarray, shape (K,)
         The swept heights, metres.
-    window_px : int
-        The NCC window's side (pixels): a patch reaches about half of it beyond a cover.
     box : (x0, y0, x1, y1)
         The pixels swept (outside it ``height`` is NaN).
     """
 
     height: NDArray[np.float32]
     heights: NDArray[np.float64]
-    window_px: int
     box: tuple[int, int, int, int]
 
 
@@ -156,7 +157,7 @@ def height_map(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Array
     ok = (best >= cfg.min_ncc) & (along >= cfg.min_texture)
     height = np.full((h_img, w_img), np.nan, np.float32)
     height[y0:y1, x0:x1] = np.where(ok, heights[arg].astype(np.float32), np.nan)
-    return HeightMap(height, heights, cfg.window_px, (x0, y0, x1, y1))
+    return HeightMap(height, heights, (x0, y0, x1, y1))
 
 
 def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
@@ -205,14 +206,9 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
                 continue
             xs, ys = xs + bx, ys + by
             uv = _apply(to_plane, np.column_stack([xs, ys]).astype(np.float64))
+            # (a window straddling a cover's edge agrees at the cover's height and one at
+            # the desk's: the patch ends about at the edge, and the sides are snapped later)
             (cu, cv_), (a, b), angle = cv2.minAreaRect(uv.astype(np.float32))
-            # a window straddling a cover's edge still agrees at the cover's height: the
-            # patch reaches half a window beyond the cover on every side
-            px = np.array([[xs.mean(), ys.mean()], [xs.mean() + 1.0, ys.mean()],
-                           [xs.mean(), ys.mean() + 1.0]])
-            q = _apply(to_plane, px)
-            metres_per_px = 0.5 * (np.linalg.norm(q[1] - q[0]) + np.linalg.norm(q[2] - q[0]))
-            a, b = a - cfg.bleed_px * metres_per_px, b - cfg.bleed_px * metres_per_px
             if not (side_range[0] <= min(a, b) and max(a, b) <= side_range[1]):
                 continue
             rect = cv2.boxPoints(((cu, cv_), (a, b), angle)).astype(np.float64)  # (4, 2) u, v
