@@ -91,12 +91,13 @@ def test_the_pipeline_finds_the_photo_book_from_the_height_map_alone(photo_book)
     sc, r, _ = photo_book
     P = np.array(r.truth["books"][0]["corners"])
     # the boundary chain's own covers and the pools off: only the height map can find it
-    settings = ["method=open", "segment.open_T_H=2000", "stereo.pool=false"]
+    settings = ["method=open", "segment.quads.min_area_px=1e9", "stereo.pool=false"]
     res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
     assert len(res.objects) == 1
     book = res.objects[0]
     assert np.linalg.norm(book.pose.center - P.mean(axis=0)) < 0.01  # metres
     assert abs(book.pose.size[2] - HEIGHT) < 0.005
+    assert book.source == "height map"
     off = Detector(sc.rig, with_settings(DetectConfig(), settings + ["heightmap.enabled=false"]))
     assert len(off.detect(r.left, r.right).objects) == 0
 

@@ -132,3 +132,18 @@ def test_a_union_of_two_touching_books_gives_way():
     assert not _is_union(1, quads, area, 0.3)
     # one book inside a bigger cover is no union (a printed panel on a cover)
     assert not _is_union(0, quads[:2], area[:2], 0.3)
+
+
+def test_without_the_desk_plane_the_pools_are_not_asked(book, monkeypatch):
+    # nothing then tells a book from a flat rectangle of a pattern (a chessboard's squares)
+    from rovis.calib import StereoRig
+    P, grads, rig = book
+    bare = StereoRig.from_arrays(K1=rig.K1, D1=rig.D1, K2=rig.K2, D2=rig.D2, R=rig.R, T=rig.T,
+                                 image_size=rig.image_size)
+    asked = []
+    monkeypatch.setattr(Detector, "_from_pool", lambda self, *a: asked.append(a) or [])
+    img = np.full((rig.image_size[1], rig.image_size[0]), 90, np.uint8)
+    Detector(bare, DetectConfig(use_marker=False)).detect(img, img)
+    assert asked == []
+    Detector(rig, DetectConfig()).detect(img, img)  # registered to the desk: asked
+    assert len(asked) == 1

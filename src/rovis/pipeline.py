@@ -329,8 +329,10 @@ class Detector:
             books += [self._reconstruct_or_why(rig, pair, desk_plane, texture) for pair in more]
             lap("pose")
         found = [(pair, book) for pair, book, _ in books if book is not None]
-        if self.cfg.stereo.pool:
+        if self.cfg.stereo.pool and desk_plane is not None:
             # beyond the paper: books among the candidates neither image's selection kept
+            # (without the desk plane, nothing tells a book from a flat rectangle of a
+            # pattern: on the real chessboard pairs, squares of the board)
             found += self._from_pool(rig, segs, grads, found, desk_plane, texture)
             lap("stereo")
         if self.cfg.heightmap.enabled and desk_plane is not None:
@@ -472,7 +474,7 @@ class Detector:
 
     def _from_pool(self, rig: StereoRig, segs: dict[str, Segmentation],
                    grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
-                   desk_plane: NDArray[np.float64] | None,
+                   desk_plane: NDArray[np.float64],
                    texture: dict[str, NDArray[np.float32]] | None,
                    ) -> list[tuple[Pair, BookDetection]]:
         """Books from the two images' candidate pools (:attr:`Segmentation.pool`) where no
