@@ -74,6 +74,26 @@ def test_raised_covers_finds_the_book_as_a_rectangle(photo_book):
     np.testing.assert_allclose(sides, [0.14, 0.14, 0.20, 0.20], atol=0.015)
 
 
+def test_a_box_computes_that_part_only_and_the_same_covers(photo_book):
+    sc, r, tex = photo_book
+    desk = np.asarray(r.truth["desk_plane"])
+    full = height_map(tex["left"], tex["right"], sc.rig.Q_L, sc.rig.Q_R, desk)
+    x0, y0, x1, y1 = box = (137, 91, 951, 707)
+    part = height_map(tex["left"], tex["right"], sc.rig.Q_L, sc.rig.Q_R, desk, box=box)
+    m = 6  # the windows at the box's border see the border, not the image beyond it
+    np.testing.assert_array_equal(part.height[y0 + m:y1 - m, x0 + m:x1 - m],
+                                  full.height[y0 + m:y1 - m, x0 + m:x1 - m])
+    outside = np.ones(part.height.shape, bool)
+    outside[y0:y1, x0:x1] = False
+    assert not np.isfinite(part.height[outside]).any()
+    a, b = raised_covers(full, sc.rig.Q_L, desk), raised_covers(part, sc.rig.Q_L, desk)
+    assert len(a) == len(b) >= 1
+    np.testing.assert_allclose(a[0][0], b[0][0], atol=1e-9)
+    empty = height_map(tex["left"], tex["right"], sc.rig.Q_L, sc.rig.Q_R, desk,
+                       box=(0, 0, 0, 0))  # an empty ROI
+    assert not np.isfinite(empty.height).any() and raised_covers(empty, sc.rig.Q_L, desk) == []
+
+
 def test_an_empty_desk_raises_nothing():
     sc = sample_scene(12, lux=300.0, n_books=0)
     sc = replace(sc, books=(), mugs=(), pens=(), cables=())

@@ -118,8 +118,6 @@ def test_a_book_from_the_pools_where_no_selection_kept_it(book):
     assert pair.pooled
     # where a book already stands the pool adds nothing
     assert det._from_pool(rig, segs, grads, found, DESK, None) == []
-    # ...and with the pool step off the detector never asks
-    assert not DetectConfig(stereo=replace(DetectConfig().stereo, pool=False)).stereo.pool
 
 
 def test_a_union_of_two_touching_books_gives_way():
@@ -146,4 +144,7 @@ def test_without_the_desk_plane_the_pools_are_not_asked(book, monkeypatch):
     Detector(bare, DetectConfig(use_marker=False)).detect(img, img)
     assert asked == []
     Detector(rig, DetectConfig()).detect(img, img)  # registered to the desk: asked
+    assert len(asked) == 1
+    off = DetectConfig(stereo=replace(DetectConfig().stereo, pool=False))
+    Detector(rig, off).detect(img, img)  # switched off: not asked
     assert len(asked) == 1

@@ -27,6 +27,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from rovis import geometry
 from rovis.segment.edges import Gradients
 from rovis.segment.quads import quad_overlap
 from rovis.sweep import _plane_frame, plane_homography
@@ -41,9 +42,10 @@ class HeightMapConfig:
     (odd, pixels); a pixel counts when its best NCC reaches ``min_ncc`` and its texture
     across the epipolar lines (mean squared derivative along them, grey levels² of the
     high-passed image) reaches ``min_texture``; ``raised``: a pixel at least this high is
-    above the desk; a slab is ``slab`` thick; a patch needs ``min_pixels`` pixels;
-    ``min_fill``: the patch's pixels within 3 px of its rectangle's outline or inside it,
-    over the outline's length, must reach this (a cover's outline or more).
+    above the desk; a slab is each swept height ± ``slab``; a patch needs ``min_pixels``
+    pixels; ``min_fill``: the share of its rectangle's outline (4 mm cells along it) with
+    patch pixels from 4 mm outside to 8 mm inside it must reach this (a cover's outline or
+    more).
 
     The pipeline's use of the rectangles (:meth:`rovis.pipeline.Detector._from_height_map`):
     ``snap_reach``, ``snap_inward``: how far each side may move onto an edge
@@ -117,9 +119,12 @@ def height_map(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Array
     """
     h_img, w_img = left.shape
     x0, y0, x1, y1 = box if box is not None else (0, 0, w_img, h_img)
+    heights = np.arange(cfg.min_height, cfg.max_height + 1e-9, cfg.step)
+    height = np.full((h_img, w_img), np.nan, np.float32)
+    if x1 <= x0 or y1 <= y0:  # an empty ROI: no height anywhere
+        return HeightMap(height, heights, (x0, y0, x1, y1))
     crop = left[y0:y1, x0:x1]
     on_desk, n, e1, e2 = _plane_frame(desk_plane)
-    heights = np.arange(cfg.min_height, cfg.max_height + 1e-9, cfg.step)
     win = (cfg.window_px, cfg.window_px)
 
     def mean(img: NDArray[np.float32]) -> NDArray[np.float32]:
@@ -130,13 +135,14 @@ def height_map(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Array
     v_l = mean(crop * crop) - m_l * m_l
     best = np.full(crop.shape, -np.inf, np.float32)
     arg = np.zeros(crop.shape, np.int32)
-    motion = None
-    for k, h in enumerate(heights):
+
+    def crop_to_right(h: float) -> NDArray[np.float64]:
         origin = on_desk + h * n
-        H = (plane_homography(Q_R, origin, e1, e2)
-             @ np.linalg.inv(plane_homography(Q_L, origin, e1, e2)) @ shift)  # crop → right
-        if k == 0:
-            motion = H
+        return (plane_homography(Q_R, origin, e1, e2)
+                @ np.linalg.inv(plane_homography(Q_L, origin, e1, e2)) @ shift)
+
+    for k, h in enumerate(heights):
+        H = crop_to_right(float(h))
         warped = cv2.warpPerspective(right, H, crop.shape[::-1],
                                      flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
         m_r = mean(warped)
@@ -146,16 +152,14 @@ def height_map(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Array
         best[better] = ncc[better]
         arg[better] = k
     # the epipolar direction at the box's centre: where the heights move a pixel
-    assert motion is not None
     centre = np.array([0.5 * (x1 - x0), 0.5 * (y1 - y0), 1.0])
-    p0, p1 = motion @ centre, H @ centre
+    p0, p1 = crop_to_right(float(heights[0])) @ centre, crop_to_right(float(heights[-1])) @ centre
     d = p1[:2] / p1[2] - p0[:2] / p0[2]
     d = d / max(float(np.linalg.norm(d)), 1e-12)
     gx = cv2.Sobel(crop, cv2.CV_32F, 1, 0, ksize=3) / 8.0
     gy = cv2.Sobel(crop, cv2.CV_32F, 0, 1, ksize=3) / 8.0
     along = mean((gx * np.float32(d[0]) + gy * np.float32(d[1])) ** 2)
     ok = (best >= cfg.min_ncc) & (along >= cfg.min_texture)
-    height = np.full((h_img, w_img), np.nan, np.float32)
     height[y0:y1, x0:x1] = np.where(ok, heights[arg].astype(np.float32), np.nan)
     return HeightMap(height, heights, (x0, y0, x1, y1))
 
@@ -166,8 +170,8 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
                   ) -> list[tuple[NDArray[np.float64], float, float]]:
     """Cover candidates: rectangles fitted to patches of one height above the desk.
 
-    Each swept height above ``cfg.raised`` is a slab (± ``cfg.slab``); the slab's pixels
-    are joined into patches (8-connected, after closing 2 px gaps) and each patch of at
+    Each swept height from ``cfg.raised`` up (but the top one) is a slab (± ``cfg.slab``);
+    the slab's pixels are joined into patches (8-connected, after closing gaps of up to 4 px) and each patch of at
     least ``cfg.min_pixels`` is laid on the plane at that height and fitted with its
     smallest rectangle. Rectangles with sides in ``side_range`` whose outline the patch
     fills (``cfg.min_fill``) are kept, the most pixels first; one overlapping a kept one
@@ -187,6 +191,7 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
     valid = np.isfinite(height) & (height < hm.heights[-1] - 0.5 * cfg.step)
     found: list[tuple[int, NDArray[np.float64], float, float, NDArray[np.float64]]] = []
     kernel = np.ones((5, 5), np.uint8)
+    shift = np.array([[1.0, 0.0, x0], [0.0, 1.0, y0], [0.0, 0.0, 1.0]])  # crop → image
     for h in hm.heights[(hm.heights >= cfg.raised) & (hm.heights < hm.heights[-1] - 0.5 * cfg.step)]:
         slab = (valid & (np.abs(np.where(valid, height, 0.0) - h) <= cfg.slab)).astype(np.uint8)
         if cv2.countNonZero(slab) < cfg.min_pixels:
@@ -194,7 +199,6 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
         joined = cv2.morphologyEx(slab, cv2.MORPH_CLOSE, kernel)
         count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
         origin = on_desk + h * n
-        shift = np.array([[1.0, 0.0, x0], [0.0, 1.0, y0], [0.0, 0.0, 1.0]])  # crop → image
         to_plane = np.linalg.inv(plane_homography(Q_L, origin, e1, e2)) @ shift  # → (u, v)
         for c in range(1, count):
             if stats[c, cv2.CC_STAT_AREA] < cfg.min_pixels:
@@ -289,6 +293,7 @@ def snap_sides(P: ArrayLike, Q: dict[str, NDArray[np.float64]], grads: dict[str,
     normal = np.cross(P[1] - P[0], P[3] - P[0])
     normal /= np.linalg.norm(normal)
     moves = np.zeros(4)
+    outward = np.zeros((4, 3))
     M = Q["left"][:, :3]
     camera = -np.linalg.solve(M, Q["left"][:, 3])  # the left camera's centre, world
     for s in range(4):
@@ -297,11 +302,12 @@ def snap_sides(P: ArrayLike, Q: dict[str, NDArray[np.float64]], grads: dict[str,
         out /= np.linalg.norm(out)
         if out @ (centre - a) > 0:
             out = -out
+        outward[s] = out
         pts = a + u[:, None] * (b - a)  # (S, 3) along the side
         moved = pts[None] + offsets[:, None, None] * out  # (O, S, 3)
         worst = None
         for cam in ("left", "right"):
-            px = _project(Q[cam], moved.reshape(-1, 3)).reshape(len(offsets), samples, 2)
+            px = geometry.project(Q[cam], moved.reshape(-1, 3)).reshape(len(offsets), samples, 2)
             along = px[:, -1] - px[:, 0]
             n_img = np.stack([-along[:, 1], along[:, 0]], axis=1)
             n_img /= np.maximum(np.linalg.norm(n_img, axis=1, keepdims=True), 1e-9)
@@ -314,21 +320,10 @@ def snap_sides(P: ArrayLike, Q: dict[str, NDArray[np.float64]], grads: dict[str,
             # a side facing the camera shows the page block beyond it, whose foot is an
             # edge too (and often along the baseline, where stereo cannot tell it): the
             # cover's edge is the innermost strong one
-            peak = (worst >= 0.5 * worst[best]) & (worst >= np.roll(worst, 1)) \
-                & (worst >= np.roll(worst, -1))
+            padded = np.r_[-np.inf, worst, -np.inf]  # no neighbour past either end
+            peak = (worst >= 0.5 * worst[best]) & (worst >= padded[:-2]) & (worst >= padded[2:])
             best = int(np.flatnonzero(peak)[0]) if peak.any() else best
         moves[s] = offsets[best]
     # each side's line moved by its offset; corner s joins side s - 1 and side s
-    out_dirs = []
-    for s in range(4):
-        a, b = P[s], P[(s + 1) % 4]
-        o = np.cross(b - a, normal)
-        o /= np.linalg.norm(o)
-        out_dirs.append(-o if o @ (centre - a) > 0 else o)
-    return np.array([P[s] + moves[s] * out_dirs[s] + moves[s - 1] * out_dirs[s - 1]
+    return np.array([P[s] + moves[s] * outward[s] + moves[s - 1] * outward[s - 1]
                      for s in range(4)])
-
-
-def _project(Q: NDArray[np.float64], X: NDArray[np.float64]) -> NDArray[np.float64]:
-    h = X @ Q[:, :3].T + Q[:, 3]
-    return h[:, :2] / h[:, 2:]

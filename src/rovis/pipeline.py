@@ -531,9 +531,10 @@ class Detector:
                 continue
             quality = float(min(pool["left"].support[i[a]].mean(),
                                 pool["right"].support[j[a]].mean()))
+            shift = int(np.argmin(left[a].sum(axis=1)))  # eq. 1 order, kept after refinement
             pair, book, _ = self._reconstruct_or_why(
-                rig, Pair(left[a], right[a], quality, float(pp.error_px[a]), pooled=True,
-                          source="candidates"),
+                rig, Pair(np.roll(left[a], -shift, axis=0), np.roll(right[a], -shift, axis=0),
+                          quality, float(pp.error_px[a]), pooled=True, source="candidates"),
                 desk_plane, texture)
             if book is None:
                 continue
@@ -566,11 +567,10 @@ class Detector:
                                              side_range=(0.8 * cfg.min_cover_side,
                                                          cfg.max_cover_side),
                                              cfg=cfg.heightmap):
+            # the corners in eq. 1's order in the left image
             left = geometry.project(rig.Q_L, P)
-            if _shoelace_sign(left) < 0:  # eq. 1: clockwise on screen, top-left first
-                P, left = P[::-1], left[::-1]
-            shift = -int(np.argmin(left.sum(axis=1)))
-            P, left = np.roll(P, shift, axis=0), np.roll(left, shift, axis=0)
+            order = [int(np.argmin(np.linalg.norm(left - c, axis=1))) for c in order_corners(left)]
+            P, left = P[order], left[order]
             if any(quad_overlap(geometry.project(Q[cam], P), t) > overlap
                    for cam in Q for t in taken[cam]):
                 continue
@@ -586,8 +586,10 @@ class Detector:
                            inward=cfg.heightmap.snap_inward)
             exact = Pair(geometry.project(rig.Q_L, P), geometry.project(rig.Q_R, P), float(fill),
                          0.0, pooled=True, source="height map")
-            refined = replace(exact, left=refine_quad(grads["left"], exact.left),
-                              right=refine_quad(grads["right"], exact.right))
+            refined = [refine_quad(grads[cam], getattr(exact, cam)) for cam in ("left", "right")]
+            shift = int(np.argmin(refined[0].sum(axis=1)))  # eq. 1 order, kept after refinement
+            refined = replace(exact, left=np.roll(refined[0], -shift, axis=0),
+                              right=np.roll(refined[1], -shift, axis=0))
             pair, book = None, None
             for trial in (refined, exact):
                 pair, book, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
@@ -798,12 +800,6 @@ class Detector:
             reprojection_error_px=float(reproj.mean()),
             quality=pair.quality, stereo_error_px=pair.error_px,
             source="one image" if pair.transferred else pair.source), ""
-
-
-def _shoelace_sign(q: NDArray[np.float64]) -> float:
-    """Positive when quad ``q`` (4, 2) runs clockwise on screen (y down)."""
-    x, y = q[:, 0], q[:, 1]
-    return float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
 def _is_union(a: int, quads: NDArray[np.float64], area: NDArray[np.float64],

@@ -55,15 +55,18 @@ class SegmentConfig:
     lsd : bool
         Beyond the paper, off by default: also keep the covers OpenCV's line segment
         detector finds (the ``lsd`` method's) where the closed loop found none, and offer
-        those over its covers as alternatives. More books, but also more covers that are
-        a part of a book or reach onto a neighbour (measured: docs/segmentation.md).
+        those over its covers as alternatives (with ``union`` only, which does that for
+        the other T_H's covers). A few more books, for one LSD pass per image (measured:
+        docs/segmentation.md).
     pool_size : int
         Most candidate quads kept per evaluation and per image for stereo to choose from
         (:attr:`Segmentation.pool`), the most edge pixels first.
-    pool_lines : int
-        Beyond the paper: where above ``n_max``, the closed loop also forms candidates
-        from this many Hough lines at its optimum's T_H, for the pool only (eq. 2 and the
-        covers still use ``n_max``).
+    pool_lines, pool_min_support : int, float
+        Beyond the paper, off by default (``pool_lines`` = ``n_max``): where
+        ``pool_lines`` is above ``n_max``, the closed loop also forms candidates from this
+        many Hough lines at its optimum's T_H, with this edge support per side
+        (``quads.min_support`` for the covers), for the pool only (eq. 2 and the covers
+        still use ``n_max``; measured in docs/stereo.md, "The height map").
     """
 
     n_max: int = 100
@@ -221,14 +224,16 @@ def _lap(timing: dict[str, float] | None, stage: str, since: float) -> float:
 def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
            timing: dict[str, float] | None = None,
            alternatives: tuple[NDArray[np.float64], ...] = (),
-           pool: Quads | None = None) -> Segmentation:
+           pool: Quads | None = None, pool_size: int = 400) -> Segmentation:
     """Refine the chosen covers to sub-pixel corners and order them (eq. 1); ``timing``
     accumulates the milliseconds under ``"refine"``; ``alternatives``: per cover of ``ev``,
     other quads over it (kept as they are); ``pool``: the candidates for
-    :attr:`Segmentation.pool` (default: ``ev``'s own, :func:`candidate_pool`)."""
+    :attr:`Segmentation.pool` (default: ``ev``'s own, at most ``pool_size``,
+    :func:`candidate_pool`)."""
     clock = time.perf_counter()
     if pool is None:
-        pool = candidate_pool([ev.selection.quads] if ev.selection is not None else [])
+        pool = candidate_pool([ev.selection.quads] if ev.selection is not None else [],
+                              pool_size)
     pool = replace(pool, corners=_canonical(pool.corners)) if len(pool) else Quads.empty()
     if len(ev.covers) == 0:
         _lap(timing, "refine", clock)

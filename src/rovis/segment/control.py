@@ -47,7 +47,8 @@ class CascadeController:
                 more: Sequence[Evaluation] = ()) -> Segmentation:
         """Search T_H and T_HG for one image, then refine the best covers (``timing``: see
         :func:`rovis.segment.boundary.evaluate`). ``more``: covers from other line sources
-        (``SegmentConfig.lsd``), kept like another T_H's where the loop found none."""
+        (``SegmentConfig.lsd``), kept like another T_H's where the loop found none (with
+        ``SegmentConfig.union``; they add no candidates to the pool)."""
         area = roi_area(grad)
         seen: dict[float, Evaluation] = {}
         pool: list[Quads] = []  # every evaluation's candidates (Segmentation.pool)
@@ -88,7 +89,6 @@ class CascadeController:
             # the T_H a warm start evaluates again: the loop's own, not another source's
             self.last_extra_T_H = sorted({ev.T_H for ev in sources
                                           if any(ev is e for e in seen.values())})
-        pool += [ev.selection.quads for ev in more if ev.selection is not None]
         if self.cfg.pool_lines > self.cfg.n_max and best.T_H > 0:
             # beyond the paper: at the optimum's T_H, the candidates of more lines than eq. 2
             # allows (a short cover side is outvoted by the desk's long lines), for stereo

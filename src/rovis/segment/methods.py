@@ -61,7 +61,7 @@ def segment(gray: NDArray[np.uint8], grad: Gradients, method: str = "closed", *,
             grad, timing=timing, more=more)
     if method == "open":
         return finish(grad, evaluate(grad, cfg.open_T_H, cfg, T_HG=cfg.open_T_HG, timing=timing),
-                      1, timing=timing)
+                      1, timing=timing, pool_size=cfg.pool_size)
     if method in ("auto-median", "auto-otsu"):
         pixels = gray[grad.mask > 0] if grad.mask is not None else gray.ravel()
         if pixels.size == 0:
@@ -75,11 +75,11 @@ def segment(gray: NDArray[np.uint8], grad: Gradients, method: str = "closed", *,
             T_L = 0.5 * T_H
         T_H = max(T_H, 1.0)
         return finish(grad, evaluate(grad, T_H, cfg, T_HG=cfg.open_T_HG, T_L=T_L, timing=timing),
-                      1, timing=timing)
+                      1, timing=timing, pool_size=cfg.pool_size)
     if method == "lsd":
-        return finish(grad, _lsd(gray, grad, cfg), 1, timing=timing)
+        return finish(grad, _lsd(gray, grad, cfg), 1, timing=timing, pool_size=cfg.pool_size)
     if method == "contour":
-        return finish(grad, _contours(grad, cfg), 1, timing=timing)
+        return finish(grad, _contours(grad, cfg), 1, timing=timing, pool_size=cfg.pool_size)
     raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
 
 
