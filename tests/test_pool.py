@@ -115,7 +115,7 @@ def test_a_book_from_the_pools_where_no_selection_kept_it(book):
     center = P.mean(axis=0)
     assert np.linalg.norm(got.pose.center - center) < 0.005  # metres, from refined corners
     assert abs(got.pose.size[2] - 0.03) < 0.004
-    assert pair.pooled
+    assert pair.source == got.source == "candidates"
     # where a book already stands the pool adds nothing
     assert det._from_pool(rig, segs, grads, found, DESK, None) == []
 

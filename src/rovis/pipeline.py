@@ -197,9 +197,10 @@ class Pair:
     error_px: float  # stereo match error (0 for a transferred cover)
     transferred: str | None = None
     alternative: bool = False  # from Segmentation.alternatives, after the first pair failed
-    pooled: bool = False  # not a segmented cover of either image: from the candidate pools
-    # (Detector._from_pool, source "candidates") or the height map (source "height map")
-    source: str = "segmentation"  # BookDetection.source ("one image" from ``transferred``)
+    # BookDetection.source: "segmentation", or a cover neither image's segmentation kept,
+    # from the candidate pools ("candidates", Detector._from_pool) or the height map
+    # ("height map"); "one image" comes from ``transferred``
+    source: str = "segmentation"
 
 
 class Detector:
@@ -534,7 +535,7 @@ class Detector:
             shift = int(np.argmin(left[a].sum(axis=1)))  # eq. 1 order, kept after refinement
             pair, book, _ = self._reconstruct_or_why(
                 rig, Pair(np.roll(left[a], -shift, axis=0), np.roll(right[a], -shift, axis=0),
-                          quality, float(pp.error_px[a]), pooled=True, source="candidates"),
+                          quality, float(pp.error_px[a]), source="candidates"),
                 desk_plane, texture)
             if book is None:
                 continue
@@ -585,7 +586,7 @@ class Detector:
             P = snap_sides(P, Q, grads, reach=cfg.heightmap.snap_reach,
                            inward=cfg.heightmap.snap_inward)
             exact = Pair(geometry.project(rig.Q_L, P), geometry.project(rig.Q_R, P), float(fill),
-                         0.0, pooled=True, source="height map")
+                         0.0, source="height map")
             refined = [refine_quad(grads[cam], getattr(exact, cam)) for cam in ("left", "right")]
             shift = int(np.argmin(refined[0].sum(axis=1)))  # eq. 1 order, kept after refinement
             refined = replace(exact, left=np.roll(refined[0], -shift, axis=0),
@@ -710,11 +711,11 @@ class Detector:
             return ""
         if _tilt_deg(pose, desk_plane) > self.cfg.max_tilt_deg:
             return "tilted"
-        # a cover found in one image only (or among the alternatives) must stand as high
-        # as the search assumed: a flat pattern on the desk (a sheet, a seam rectangle)
-        # is no book
-        low = (self.cfg.stereo.min_height if pair.transferred or pair.alternative or pair.pooled
-               else 0.0)
+        # a cover found in one image only (or among the alternatives, the candidates or in
+        # the height map) must stand as high as the search assumed: a flat pattern on the
+        # desk (a sheet, a seam rectangle) is no book
+        low = (self.cfg.stereo.min_height
+               if pair.transferred or pair.alternative or pair.source != "segmentation" else 0.0)
         if not low < pose.size[2] <= self.cfg.stereo.max_height:
             return "height"
         # a side lying on the desk is a line on the desk (a shadow's edge, the page
