@@ -323,3 +323,24 @@ def test_lsd_covers_are_kept_where_the_closed_loop_found_nothing(monkeypatch):
     got = segment(img, gradients(img), "closed", controller=ctl)
     np.testing.assert_allclose(got.corners, [order_corners(np.array(quad))])
     assert ctl.last_extra_T_H == []  # a warm start evaluates no T_H for LSD's covers
+
+
+def test_linear_gradients_put_a_gamma_encoded_edge_back_in_place():
+    from rovis.segment.edges import linear_gradients
+    from rovis.segment.lines import refine_segment
+    # a vertical edge at x = 60.3 px between linear intensities 0.05 and 0.9, blurred by the
+    # optics (sigma 1.2 px, 8x supersampled), then gamma-encoded as a camera does
+    ss, edge = 8, 60.3
+    x = (np.arange(128 * ss) + 0.5) / ss - 0.5
+    row = np.where(x < edge, 0.05, 0.9).astype(np.float32)
+    row = cv2.GaussianBlur(row[None, :], (0, 0), 1.2 * ss).ravel().reshape(128, ss).mean(axis=1)
+    img = np.tile(np.round(255 * row ** (1 / 2.2)).astype(np.uint8), (80, 1))
+    a, b = np.array([edge, 10.0]), np.array([edge, 70.0])
+    x_at = {}
+    for name, grad in (("gamma", gradients(img)), ("linear", linear_gradients(img, gamma=2.2))):
+        point, _ = refine_segment(grad, a + [1.0, 0.0], b + [1.0, 0.0])  # started 1 px off
+        x_at[name] = point[0]
+    assert abs(x_at["linear"] - edge) < 0.1  # px
+    assert x_at["gamma"] < edge - 0.2  # the encoded edge's steepest step: on the dark side
+    with pytest.raises(ValueError, match="gamma"):
+        linear_gradients(img, gamma=0.0)

@@ -61,6 +61,12 @@ class SegmentConfig:
     pool_size : int
         Most candidate quads kept per evaluation and per image for stereo to choose from
         (:attr:`Segmentation.pool`), the most edge pixels first.
+    refine_gamma : float
+        Beyond the paper, off by default (1: refine on the image as it is): the camera's
+        gamma, undone for the sub-pixel refinement of the covers' sides
+        (:func:`rovis.segment.edges.linear_gradients`; 2.2 for an sRGB-like 8-bit camera,
+        as the synthetic scenes). Closer corners in 2D, but in dim scenes the linear image's
+        weak darks lose books (measured: docs/segmentation.md).
     pool_lines, pool_min_support : int, float
         Beyond the paper, off by default (``pool_lines`` = ``n_max``): where
         ``pool_lines`` is above ``n_max``, the closed loop also forms candidates from this
@@ -83,6 +89,7 @@ class SegmentConfig:
     union: bool = True
     lsd: bool = False
     pool_size: int = 400
+    refine_gamma: float = 1.0
     pool_lines: int = 100
     pool_min_support: float = 0.7
     quads: QuadConfig = field(default_factory=QuadConfig)
@@ -224,9 +231,11 @@ def _lap(timing: dict[str, float] | None, stage: str, since: float) -> float:
 def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
            timing: dict[str, float] | None = None,
            alternatives: tuple[NDArray[np.float64], ...] = (),
-           pool: Quads | None = None, pool_size: int = 400) -> Segmentation:
-    """Refine the chosen covers to sub-pixel corners and order them (eq. 1); ``timing``
-    accumulates the milliseconds under ``"refine"``; ``alternatives``: per cover of ``ev``,
+           pool: Quads | None = None, pool_size: int = 400,
+           refine: Gradients | None = None) -> Segmentation:
+    """Refine the chosen covers to sub-pixel corners and order them (eq. 1), on
+    ``refine``'s gradients if given (:func:`rovis.segment.edges.linear_gradients`), else on
+    ``grad``'s; ``timing`` accumulates the milliseconds under ``"refine"``; ``alternatives``: per cover of ``ev``,
     other quads over it (kept as they are); ``pool``: the candidates for
     :attr:`Segmentation.pool` (default: ``ev``'s own, at most ``pool_size``,
     :func:`candidate_pool`)."""
@@ -241,7 +250,7 @@ def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
                             ev.T_H, ev.T_HG, ev.y, iterations, pool=pool)
     refined, coarse = [], []
     for quad in ev.covers.corners:
-        refined.append(order_corners(refine_quad(grad, quad)))
+        refined.append(order_corners(refine_quad(refine or grad, quad)))
         coarse.append(order_corners(quad))
     _lap(timing, "refine", clock)
     return Segmentation(np.array(refined), np.array(coarse), ev.covers.support.mean(axis=1),

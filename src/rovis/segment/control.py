@@ -44,11 +44,12 @@ class CascadeController:
         self.last_extra_T_H = []
 
     def segment(self, grad: Gradients, *, timing: dict[str, float] | None = None,
-                more: Sequence[Evaluation] = ()) -> Segmentation:
+                more: Sequence[Evaluation] = (), refine: Gradients | None = None) -> Segmentation:
         """Search T_H and T_HG for one image, then refine the best covers (``timing``: see
         :func:`rovis.segment.boundary.evaluate`). ``more``: covers from other line sources
         (``SegmentConfig.lsd``), kept like another T_H's where the loop found none (with
-        ``SegmentConfig.union``; they add no candidates to the pool)."""
+        ``SegmentConfig.union``; they add no candidates to the pool). ``refine``: the
+        gradients the chosen covers are refined on (:func:`rovis.segment.boundary.finish`)."""
         area = roi_area(grad)
         seen: dict[float, Evaluation] = {}
         pool: list[Quads] = []  # every evaluation's candidates (Segmentation.pool)
@@ -99,7 +100,7 @@ class CascadeController:
             if wide.selection is not None:
                 pool.append(candidate_pool([wide.selection.quads], self.cfg.pool_size))
         return finish(grad, best, iterations, timing=timing, alternatives=alternatives,
-                      pool=candidate_pool(pool, self.cfg.pool_size))
+                      pool=candidate_pool(pool, self.cfg.pool_size), refine=refine)
 
     def _full_search(self, run) -> Evaluation:  # type: ignore[no-untyped-def]
         lo, hi = np.log(self.cfg.T_H_range[0]), np.log(self.cfg.T_H_range[1])

@@ -17,7 +17,7 @@ class Gradients:
 
     Attributes
     ----------
-    dx, dy : ndarray, shape (H, W), int16
+    dx, dy : ndarray, shape (H, W), int16 (float32 from :func:`linear_gradients`)
         3×3 Sobel derivatives, the input cv2.Canny accepts instead of an image.
     mask : ndarray, shape (H, W), uint8 or None
         Region of interest (non-zero inside); edges outside it are dropped.
@@ -79,6 +79,43 @@ def gradients(gray: NDArray[np.uint8], mask: NDArray[np.uint8] | None = None, *,
         x, y, bw, bh = cv2.boundingRect(mask)
         box = (x, y, x + bw, y + bh)
     return Gradients(dx=dx, dy=dy, mask=mask, box=box)
+
+
+def linear_gradients(gray: NDArray[np.uint8], mask: NDArray[np.uint8] | None = None, *,
+                     gamma: float = 2.2, sigma: float = 1.0) -> Gradients:
+    """Sobel derivatives of the image's linear intensities, for sub-pixel refinement.
+
+    A camera encodes light with a gamma (about 1/2.2) after the optics blurred it, and an
+    edge's steepest grey-level step then lies nearer its dark side than the edge does.
+    Undoing the gamma first (``gray/255`` to the power ``gamma``, times 255, in float32)
+    puts the steepest step back on the edge (measured in docs/segmentation.md). Not for
+    Canny: its thresholds are in the image's own grey levels.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (H, W), uint8
+    mask : ndarray, shape (H, W), uint8, optional
+    gamma : float
+        The encoding's exponent to undo (1 leaves the image as it is).
+    sigma : float
+        Gaussian pre-smoothing, pixels, as :func:`gradients`.
+    """
+    if gray.ndim != 2 or gray.dtype != np.uint8:
+        raise ValueError(f"gray: expected a 2-D uint8 image, got {gray.dtype} {gray.shape}")
+    if not gamma > 0:
+        raise ValueError(f"gamma: expected a positive number, got {gamma!r}")
+    lut = (255.0 * (np.arange(256, dtype=np.float64) / 255.0) ** gamma).astype(np.float32)
+    img = lut[gray]
+    if sigma > 0:
+        img = cv2.GaussianBlur(img, (0, 0), sigma)
+    dx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)
+    dy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)
+    h, w = gray.shape
+    box = (0, 0, w, h)
+    if mask is not None:
+        x, y, bw, bh = cv2.boundingRect(mask)
+        box = (x, y, x + bw, y + bh)
+    return Gradients(dx=dx, dy=dy, mask=mask, box=box)  # type: ignore[arg-type]
 
 
 def canny(grad: Gradients, T_H: float, T_L: float | None = None) -> NDArray[np.uint8]:

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from rovis.segment.boundary import (Evaluation, SegmentConfig, Segmentation, evaluate, finish,
                                     roi_area)
 from rovis.segment.control import CascadeController
-from rovis.segment.edges import Gradients, canny
+from rovis.segment.edges import Gradients, canny, linear_gradients
 from rovis.segment.lines import Lines, suppress_duplicates, support_profile
 from rovis.segment.quads import CoverSelection, Quads, candidate_quads
 
@@ -50,6 +50,12 @@ def segment(gray: NDArray[np.uint8], grad: Gradients, method: str = "closed", *,
         :func:`rovis.segment.boundary.evaluate`).
     """
     cfg = cfg or (controller.cfg if controller is not None else SegmentConfig())
+    # sub-pixel sides on linear intensities (SegmentConfig.refine_gamma)
+    clock = time.perf_counter()
+    refine = (None if cfg.refine_gamma == 1.0
+              else linear_gradients(gray, grad.mask, gamma=cfg.refine_gamma))
+    if timing is not None:
+        timing["refine"] = timing.get("refine", 0.0) + 1e3 * (time.perf_counter() - clock)
     if method == "closed":
         more = ()
         if cfg.lsd:  # beyond the paper: a second line source's covers (SegmentConfig.lsd)
@@ -58,10 +64,10 @@ def segment(gray: NDArray[np.uint8], grad: Gradients, method: str = "closed", *,
             if timing is not None:
                 timing["lsd"] = timing.get("lsd", 0.0) + 1e3 * (time.perf_counter() - clock)
         return (controller or CascadeController(cfg, warm_start=False)).segment(
-            grad, timing=timing, more=more)
+            grad, timing=timing, more=more, refine=refine)
     if method == "open":
         return finish(grad, evaluate(grad, cfg.open_T_H, cfg, T_HG=cfg.open_T_HG, timing=timing),
-                      1, timing=timing, pool_size=cfg.pool_size)
+                      1, timing=timing, pool_size=cfg.pool_size, refine=refine)
     if method in ("auto-median", "auto-otsu"):
         pixels = gray[grad.mask > 0] if grad.mask is not None else gray.ravel()
         if pixels.size == 0:
@@ -75,11 +81,13 @@ def segment(gray: NDArray[np.uint8], grad: Gradients, method: str = "closed", *,
             T_L = 0.5 * T_H
         T_H = max(T_H, 1.0)
         return finish(grad, evaluate(grad, T_H, cfg, T_HG=cfg.open_T_HG, T_L=T_L, timing=timing),
-                      1, timing=timing, pool_size=cfg.pool_size)
+                      1, timing=timing, pool_size=cfg.pool_size, refine=refine)
     if method == "lsd":
-        return finish(grad, _lsd(gray, grad, cfg), 1, timing=timing, pool_size=cfg.pool_size)
+        return finish(grad, _lsd(gray, grad, cfg), 1, timing=timing, pool_size=cfg.pool_size,
+                      refine=refine)
     if method == "contour":
-        return finish(grad, _contours(grad, cfg), 1, timing=timing, pool_size=cfg.pool_size)
+        return finish(grad, _contours(grad, cfg), 1, timing=timing, pool_size=cfg.pool_size,
+                      refine=refine)
     raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
 
 
