@@ -4,7 +4,11 @@
 2. undistort both images (lines are straight only there);
 3. boundary segmentation of each image (closed loop or a baseline) → cover corners;
 4. stereo correspondence of the covers;
-5. triangulation of the four corners (eq. 3–5) → pose (eq. 6–7) and cuboid.
+5. triangulation of the four corners (eq. 3–5) → pose (eq. 6–7) and cuboid;
+
+and, beyond the paper, where no book is yet: the covers one image found looked for in the
+other, stereo's choice among both images' candidate quads, the covers that stand out of the
+desk in a stereo height map; then each cover's sides moved to its edges (docs/stereo.md).
 
 A :class:`Detector` keeps what is set up once per rig (undistortion maps) and, in a
 sequence, the controllers' previous optimum (warm start).
