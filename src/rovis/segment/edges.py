@@ -70,15 +70,7 @@ def gradients(gray: NDArray[np.uint8], mask: NDArray[np.uint8] | None = None, *,
         raise ValueError(f"gray: expected a 2-D uint8 image, got {gray.dtype} {gray.shape}")
     if mask is not None and mask.shape != gray.shape:
         raise ValueError(f"mask: expected shape {gray.shape}, got {mask.shape}")
-    img = cv2.GaussianBlur(gray, (0, 0), sigma) if sigma > 0 else gray
-    dx = cv2.Sobel(img, cv2.CV_16S, 1, 0, ksize=3)
-    dy = cv2.Sobel(img, cv2.CV_16S, 0, 1, ksize=3)
-    h, w = gray.shape
-    box = (0, 0, w, h)
-    if mask is not None:
-        x, y, bw, bh = cv2.boundingRect(mask)
-        box = (x, y, x + bw, y + bh)
-    return Gradients(dx=dx, dy=dy, mask=mask, box=box)
+    return _sobel(gray, mask, sigma, cv2.CV_16S)
 
 
 def linear_gradients(gray: NDArray[np.uint8], mask: NDArray[np.uint8] | None = None, *,
@@ -105,17 +97,23 @@ def linear_gradients(gray: NDArray[np.uint8], mask: NDArray[np.uint8] | None = N
     if not gamma > 0:
         raise ValueError(f"gamma: expected a positive number, got {gamma!r}")
     lut = (255.0 * (np.arange(256, dtype=np.float64) / 255.0) ** gamma).astype(np.float32)
-    img = lut[gray]
+    return _sobel(lut[gray], mask, sigma, cv2.CV_32F)
+
+
+def _sobel(img: NDArray[np.generic], mask: NDArray[np.uint8] | None, sigma: float,
+           ddepth: int) -> Gradients:
+    """Smooth ``img`` (Gaussian ``sigma`` px, 0: not), take 3×3 Sobel derivatives of depth
+    ``ddepth`` and the ROI's bounding box."""
     if sigma > 0:
         img = cv2.GaussianBlur(img, (0, 0), sigma)
-    dx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)
-    dy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)
-    h, w = gray.shape
+    dx = cv2.Sobel(img, ddepth, 1, 0, ksize=3)
+    dy = cv2.Sobel(img, ddepth, 0, 1, ksize=3)
+    h, w = img.shape[:2]
     box = (0, 0, w, h)
     if mask is not None:
         x, y, bw, bh = cv2.boundingRect(mask)
         box = (x, y, x + bw, y + bh)
-    return Gradients(dx=dx, dy=dy, mask=mask, box=box)  # type: ignore[arg-type]
+    return Gradients(dx=dx, dy=dy, mask=mask, box=box)
 
 
 def canny(grad: Gradients, T_H: float, T_L: float | None = None) -> NDArray[np.uint8]:
