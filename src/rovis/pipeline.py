@@ -35,7 +35,7 @@ from rovis.segment import CascadeController, SegmentConfig, Segmentation, gradie
 from rovis.segment.edges import CANNY_LOW_RATIO, Gradients
 from rovis.segment.methods import METHODS, segment
 from rovis.segment.boundary import refine_quad
-from rovis.segment.quads import order_corners, quad_overlap
+from rovis.segment.quads import Quads, order_corners, quad_overlap
 from rovis.stereo import (Match, StereoConfig, find_in_other_view, flat_rectangle, match_quads,
                           pool_pairs)
 from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pass, on_plane,
@@ -495,7 +495,9 @@ class Detector:
         """
         cfg = self.cfg
         overlap = cfg.stereo.transfer_max_overlap
-        pool = {cam: segs[cam].pool for cam in ("left", "right")}
+        # the full candidates and those with one side unseen (Segmentation.open_pool)
+        pool = {cam: Quads.concat([segs[cam].pool, segs[cam].open_pool])
+                for cam in ("left", "right")}
         taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
         index = {cam: np.array([k for k, q in enumerate(pool[cam].corners)
                                 if not any(quad_overlap(q, t) > overlap for t in taken[cam])],

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from rovis.segment.edges import Gradients, canny
 from rovis.segment.lines import Lines, hough_lines, intersect, refine_segment, support_profile
 from rovis.segment.quads import (CoverSelection, QuadConfig, Quads, _canonical, _distinct,
-                                 candidate_quads, order_corners)
+                                 candidate_quads, order_corners, three_sided_quads)
 from rovis.segment.quality import PRINTED, quality
 
 
@@ -73,6 +73,11 @@ class SegmentConfig:
         many Hough lines at its optimum's T_H, with this edge support per side
         (``quads.min_support`` for the covers), for the pool only (eq. 2 and the covers
         still use ``n_max``; measured in docs/stereo.md, "The height map").
+    three_sided : bool
+        Beyond the paper: at the T_H whose covers were kept, also offer stereo the
+        candidates with one side unseen (:func:`rovis.segment.quads.three_sided_quads`;
+        :attr:`Segmentation.open_pool`). A cover of the desk's brightness shows almost no
+        step where it meets the desk behind it.
     """
 
     n_max: int = 100
@@ -92,6 +97,7 @@ class SegmentConfig:
     refine_gamma: float = 1.0
     pool_lines: int = 100
     pool_min_support: float = 0.7
+    three_sided: bool = True
     quads: QuadConfig = field(default_factory=QuadConfig)
 
 
@@ -140,6 +146,11 @@ class Segmentation:
         ``lines`` and ``support`` keep each candidate's own cyclic order, and ``lines``
         index the Lines of the evaluation it came from. Empty for methods without
         candidates.
+    open_pool : Quads
+        Beyond the paper: candidates with three sides on Hough lines and the fourth (side
+        2) where the edges of the two beside it end (:func:`three_sided_quads`; with
+        ``SegmentConfig.three_sided``), eq. 1 order, the most edge pixels first, for
+        stereo like :attr:`pool`.
     """
 
     corners: NDArray[np.float64]
@@ -152,6 +163,7 @@ class Segmentation:
     iterations: int
     alternatives: tuple[NDArray[np.float64], ...] = ()
     pool: Quads = field(default_factory=Quads.empty)
+    open_pool: Quads = field(default_factory=Quads.empty)
 
     def __len__(self) -> int:
         return len(self.corners)
@@ -232,14 +244,16 @@ def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
            timing: dict[str, float] | None = None,
            alternatives: tuple[NDArray[np.float64], ...] = (),
            pool: Quads | None = None, pool_size: int = 400,
-           refine: Gradients | None = None) -> Segmentation:
+           refine: Gradients | None = None, open_pool: Quads | None = None) -> Segmentation:
     """Refine the chosen covers to sub-pixel corners and order them (eq. 1), on
     ``refine``'s gradients if given (:func:`rovis.segment.edges.linear_gradients`), else on
     ``grad``'s; ``timing`` accumulates the milliseconds under ``"refine"``; ``alternatives``: per cover of ``ev``,
     other quads over it (kept as they are); ``pool``: the candidates for
     :attr:`Segmentation.pool` (default: ``ev``'s own, at most ``pool_size``,
-    :func:`candidate_pool`)."""
+    :func:`candidate_pool`); ``open_pool``: :attr:`Segmentation.open_pool`'s."""
     clock = time.perf_counter()
+    open_pool = (replace(open_pool, corners=_canonical(open_pool.corners))
+                 if open_pool is not None and len(open_pool) else Quads.empty())
     if pool is None:
         pool = candidate_pool([ev.selection.quads] if ev.selection is not None else [],
                               pool_size)
@@ -247,14 +261,15 @@ def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
     if len(ev.covers) == 0:
         _lap(timing, "refine", clock)
         return Segmentation(np.zeros((0, 4, 2)), np.zeros((0, 4, 2)), np.zeros(0), ev.lines,
-                            ev.T_H, ev.T_HG, ev.y, iterations, pool=pool)
+                            ev.T_H, ev.T_HG, ev.y, iterations, pool=pool, open_pool=open_pool)
     refined, coarse = [], []
     for quad in ev.covers.corners:
         refined.append(order_corners(refine_quad(refine or grad, quad)))
         coarse.append(order_corners(quad))
     _lap(timing, "refine", clock)
     return Segmentation(np.array(refined), np.array(coarse), ev.covers.support.mean(axis=1),
-                        ev.lines, ev.T_H, ev.T_HG, ev.y, iterations, alternatives, pool=pool)
+                        ev.lines, ev.T_H, ev.T_HG, ev.y, iterations, alternatives, pool=pool,
+                        open_pool=open_pool)
 
 
 def candidate_pool(parts: Iterable[Quads], most: int = 400, duplicate_px: float = 3.0) -> Quads:
@@ -269,6 +284,36 @@ def candidate_pool(parts: Iterable[Quads], most: int = 400, duplicate_px: float 
     quads = parts[0] if len(parts) == 1 else _distinct(Quads.concat(parts), duplicate_px)[0]
     order = np.argsort(-quads.n_f, kind="stable")[:most]  # the most edge pixels first
     return quads.take(order)
+
+
+def without_near(quads: Quads, others: Quads, tol_px: float) -> Quads:
+    """``quads`` less those whose four corners all lie within ``tol_px`` of one of
+    ``others``' (any corner order)."""
+    if len(quads) == 0 or len(others) == 0:
+        return quads
+    a, b = _canonical(quads.corners), _canonical(others.corners)
+    near = np.zeros(len(a), bool)
+    for k in range(0, len(b), 64):  # (K, 64, 4, 2) at a time: bounded memory
+        d = np.abs(a[:, None] - b[None, k:k + 64]).max(axis=(2, 3))
+        near |= (d <= tol_px).any(axis=1)
+    return quads.take(~near)
+
+
+def open_candidates(grad: Gradients, T_H: float, cfg: SegmentConfig, *,
+                    area: float | None = None,
+                    timing: dict[str, float] | None = None) -> Quads:
+    """The three-sided candidates (:func:`three_sided_quads`) of the chain at one T_H:
+    its N_max strongest Hough lines above ``T_HG_min`` (``timing``: under ``"three_sided"``)."""
+    clock = time.perf_counter()
+    area = roi_area(grad) if area is None else area
+    edges = canny(grad, T_H)
+    lines = hough_lines(edges, cfg.T_HG_min, grad=grad, max_lines=cfg.n_max, box=grad.box)
+    quads = Quads.empty()
+    if len(lines) >= 3:
+        profile = support_profile(lines, edges, grad, box=grad.box)
+        quads = three_sided_quads(lines, profile, grad.shape, area, cfg.quads)
+    _lap(timing, "three_sided", clock)
+    return quads
 
 
 def refine_quad(grad: Gradients, corners: NDArray[np.float64], *,

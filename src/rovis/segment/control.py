@@ -17,7 +17,7 @@ from itertools import zip_longest
 import numpy as np
 
 from rovis.segment.boundary import (Evaluation, SegmentConfig, Segmentation, candidate_pool,
-                                   evaluate, finish, roi_area)
+                                   evaluate, finish, open_candidates, roi_area, without_near)
 from rovis.segment.edges import Gradients
 from rovis.segment.quads import Quads, order_corners, quad_overlap
 
@@ -84,6 +84,7 @@ class CascadeController:
         self.last_T_H = best.T_H if best.y > 0 else self.last_T_H
         iterations = sum(ev.inner_iterations for ev in seen.values())
         alternatives: tuple[np.ndarray, ...] = ()
+        sources: list[Evaluation] = []
         if self.cfg.union and (best.y > 0 or any(len(ev.covers) for ev in more)):
             best, sources, alternatives = with_other_covers(best, [*seen.values(), *more],
                                                             self.cfg.quads.max_overlap)
@@ -99,8 +100,19 @@ class CascadeController:
                             timing=timing)
             if wide.selection is not None:
                 pool.append(candidate_pool([wide.selection.quads], self.cfg.pool_size))
+        full = candidate_pool(pool, self.cfg.pool_size)
+        open_pool = None
+        if self.cfg.three_sided and best.T_H > 0:
+            # beyond the paper: covers with one side unseen, at the T_H whose covers were
+            # kept; those a full candidate already gives (all four sides seen) are left out
+            thresholds = [best.T_H] + [ev.T_H for ev in sources
+                                       if any(ev is e for e in seen.values())]
+            open_pool = without_near(candidate_pool(
+                [open_candidates(grad, T_H, self.cfg, area=area, timing=timing)
+                 for T_H in dict.fromkeys(thresholds)], self.cfg.pool_size), full,
+                self.cfg.quads.duplicate_px)
         return finish(grad, best, iterations, timing=timing, alternatives=alternatives,
-                      pool=candidate_pool(pool, self.cfg.pool_size), refine=refine)
+                      pool=full, refine=refine, open_pool=open_pool)
 
     def _full_search(self, run) -> Evaluation:  # type: ignore[no-untyped-def]
         lo, hi = np.log(self.cfg.T_H_range[0]), np.log(self.cfg.T_H_range[1])

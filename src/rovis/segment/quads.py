@@ -109,25 +109,7 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     n = len(lines)
     if n < 4:
         return Quads.empty()
-    th = lines.theta
-    dth = np.abs(th[:, None] - th[None, :])
-    dth = np.minimum(dth, np.pi - dth)
-    X, T = _intersections(lines)
-    h, w = image_shape
-    # A corner may lie outside the image (a book cut by the frame): its lines still place it.
-    m = cfg.outside_frac * max(h, w)
-    inside = ((X[..., 0] > -m) & (X[..., 0] < w + m) & (X[..., 1] > -m) & (X[..., 1] < h + m))
-    corner = (dth > np.radians(cfg.min_corner_deg)) & inside & inside.T
-    ci, cj = np.nonzero(np.triu(corner, 1))
-    ok = _arm(profile, ci, T[ci, cj], cfg) & _arm(profile, cj, T[cj, ci], cfg)
-    corner[:] = False
-    corner[ci[ok], cj[ok]] = corner[cj[ok], ci[ok]] = True
-
-    # Opposite sides: near-parallel lines a plausible side length apart.
-    sep = np.abs(lines.rho[:, None] - lines.rho[None, :])
-    sep = np.where(np.abs(th[:, None] - th[None, :]) > np.pi / 2,  # θ wrapped: ρ flips sign
-                   np.abs(lines.rho[:, None] + lines.rho[None, :]), sep)
-    par = (dth < np.radians(cfg.parallel_deg)) & (sep >= cfg.min_side_px * 0.5) & (sep <= cfg.max_side_px)
+    X, T, corner, par = _corner_graph(lines, profile, image_shape, cfg)
     iu, ku = np.nonzero(np.triu(par, 1))
     common = corner[iu] & corner[ku]  # (pairs, n): lines crossing both with a corner
     p, j, l = _pairs_within_rows(common)  # every two common neighbours j < l of pair p
@@ -168,6 +150,161 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     quads = Quads(side_lines[keep], corners[keep], support[keep], hits[keep].sum(axis=1),
                   lines.votes[side_lines[keep]].min(axis=1))
     return quads
+
+
+def three_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[int, int],
+                      roi_area: float, cfg: QuadConfig = QuadConfig(), *,
+                      max_gap_px: float = 8.0, max_run_px: float = 400.0,
+                      max_skew_deg: float = 8.0) -> Quads:
+    """Beyond the paper: cover candidates with three sides on lines and the fourth where
+    the other two sides' edges end.
+
+    A cover of the desk's brightness shows almost no step where it meets the desk behind
+    it, while its other sides do (the page block, a shadow, the desk in front): no Hough
+    line, no 4-cycle. Here a "U" — a base line with a corner (:func:`_arm`) at each end
+    and two near-parallel lateral lines — is closed by following each lateral line's edge
+    pixels from its corner until a gap of ``max_gap_px``; the line through the two ends is
+    the fourth side. The same rules as :func:`candidate_quads` apply to the three seen
+    sides (length, ``min_support``) and to the quad (angles, area); its fourth side must
+    be within ``max_skew_deg`` of parallel to the base (a cover's far and near sides are,
+    in perspective, at this size), which the two ends of a cover's sides are and those
+    of unrelated edges mostly not. Too loose for one image to trust: stereo checks them
+    (:attr:`rovis.segment.Segmentation.open_pool`).
+
+    Returns
+    -------
+    Quads
+        Side 2 is the open one (its ``lines`` entry −1, ``support`` 0); ``n_f`` counts
+        the edge pixels of the three seen sides.
+    """
+    n = len(lines)
+    if n < 3:
+        return Quads.empty()
+    X, T, corner, par = _corner_graph(lines, profile, image_shape, cfg)
+    iu, ku = np.nonzero(np.triu(par, 1))
+    p, b = np.nonzero(corner[iu] & corner[ku])  # base b crosses laterals a, c with corners
+    a, c = iu[p], ku[p]
+    flat_T = T.ravel()
+    tba, tbc = flat_T[b * n + a], flat_T[b * n + c]  # the corners along the base
+    base = np.abs(tbc - tba)
+    trim = cfg.corner_trim_px
+    ok = (base >= cfg.min_side_px) & (base <= cfg.max_side_px)
+    a, b, c, tba, tbc, base = a[ok], b[ok], c[ok], tba[ok], tbc[ok], base[ok]
+    base_hits = profile.hits(b, np.minimum(tba, tbc) + trim, np.maximum(tba, tbc) - trim)
+    ok = base_hits >= cfg.min_support * np.maximum(base - 2 * trim, 1.0)
+    a, b, c, base_hits = a[ok], b[ok], c[ok], base_hits[ok]
+    if len(a) == 0:
+        return Quads.empty()
+    # Both laterals leave the base on the same side of it, either side (σ = ±1): along
+    # line a the direction whose image vector points to that side of b.
+    nrm, d = lines.normals, lines.directions
+    a, b, c, base_hits = (np.concatenate([v, v]) for v in (a, b, c, base_hits))
+    sigma = np.repeat([1.0, -1.0], len(a) // 2)
+    sa = sigma * np.sign(np.sum(d[a] * nrm[b], axis=1))
+    sc = sigma * np.sign(np.sum(d[c] * nrm[b], axis=1))
+    # A lateral's run depends on its line, its corner with the base and its direction
+    # only: each such run is followed once, however many U's share it.
+    keys = np.concatenate([(a * n + b) * 2 + (sa > 0), (c * n + b) * 2 + (sc > 0)])
+    runs, inverse = np.unique(keys, return_inverse=True)
+    line, other, up = runs // 2 // n, runs // 2 % n, np.where(runs % 2 == 1, 1.0, -1.0)
+    end, hit = _run_end(profile, line, flat_T[line * n + other], up, trim, max_gap_px,
+                        max_run_px)
+    end_a, run_a = end[inverse[:len(a)]], hit[inverse[:len(a)]]
+    end_c, run_c = end[inverse[len(a):]], hit[inverse[len(a):]]
+    ok = ((end_a >= cfg.min_side_px) & (end_c >= cfg.min_side_px)
+          & (run_a >= cfg.min_support * np.maximum(end_a - trim, 1.0))
+          & (run_c >= cfg.min_support * np.maximum(end_c - trim, 1.0)))
+    idx = np.flatnonzero(ok)
+    if len(idx) == 0:
+        return Quads.empty()
+    a, b, c, sa, sc = a[idx], b[idx], c[idx], sa[idx], sc[idx]
+    end_a, end_c, run_a, run_c, base_hits = end_a[idx], end_c[idx], run_a[idx], run_c[idx], base_hits[idx]
+    far_a = lines.rho[a, None] * nrm[a] + (flat_T[a * n + b] + sa * end_a)[:, None] * d[a]
+    far_c = lines.rho[c, None] * nrm[c] + (flat_T[c * n + b] + sc * end_c)[:, None] * d[c]
+    corners = np.stack([X[a, b], X[b, c], far_c, far_a], axis=1)  # sides: b, c, open, a
+    far = far_a - far_c
+    far_len = np.hypot(far[:, 0], far[:, 1])
+    base_dir = X[b, c] - X[a, b]
+    cos_far = np.abs(np.sum(far * base_dir, axis=1)) / (
+        far_len * np.hypot(base_dir[:, 0], base_dir[:, 1]) + 1e-12)
+    h, w = image_shape
+    inside = np.all((far_a >= 0) & (far_a < [w, h]), axis=1) & np.all((far_c >= 0) & (far_c < [w, h]), axis=1)
+    area = 0.5 * np.abs(_shoelace(corners))
+    keep = ((far_len >= cfg.min_side_px) & (far_len <= cfg.max_side_px)
+            & (cos_far >= np.cos(np.radians(max_skew_deg))) & inside
+            & (area >= cfg.min_area_px) & (area <= cfg.max_area_frac * roi_area)
+            & _convex_with_angles(corners, cfg.min_corner_deg))
+    if not keep.any():
+        return Quads.empty()
+    base_len = np.hypot(base_dir[:, 0], base_dir[:, 1])
+    support = np.column_stack([base_hits / np.maximum(base_len - 2 * trim, 1.0),
+                               run_c / np.maximum(end_c - trim, 1.0), np.zeros(len(a)),
+                               run_a / np.maximum(end_a - trim, 1.0)])
+    quads = Quads(np.column_stack([b, c, np.full(len(a), -1), a])[keep], corners[keep],
+                  np.minimum(support[keep], 1.0), (base_hits + run_a + run_c)[keep],
+                  lines.votes[np.column_stack([a, b, c])[keep]].min(axis=1))
+    return _distinct(quads, cfg.duplicate_px)[0]
+
+
+def _run_end(profile: SupportProfile, line: NDArray[np.intp], t0: NDArray[np.float64],
+             sign: NDArray[np.float64], start: float, max_gap: float, most: float,
+             ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """How far (px) the edge pixels on ``line`` run from position ``t0`` in direction
+    ``sign`` (±1), from ``start`` on, before a gap of ``max_gap`` px (at most ``most``
+    px); and the hits on the way (vectorised over the lines).
+
+    Each line's nearest gap ahead of and behind every sample is found once, by a running
+    minimum (maximum) over the samples where a gap starts (ends), so a run costs O(1).
+    """
+    cum = profile.cum  # (N, L + 1): hits before each sample
+    n_samples = cum.shape[1] - 1
+    g = max(int(round(max_gap)), 1)
+    k = np.arange(n_samples)
+    # a gap starts at m when samples m .. m+g-1 hold no hit (beyond the samples: none)
+    ahead = cum[:, np.minimum(k + g, n_samples)] - cum[:, k]
+    fwd = np.where(ahead == 0, k, n_samples)
+    fwd = np.minimum.accumulate(fwd[:, ::-1], axis=1)[:, ::-1]  # first gap at or after k
+    # a gap ends at m when samples m-g+1 .. m hold no hit
+    behind = cum[:, k + 1] - cum[:, np.maximum(k + 1 - g, 0)]
+    bwd = np.where(behind == 0, k, -1)
+    bwd = np.maximum.accumulate(bwd, axis=1)  # last gap at or before k
+    k0 = np.rint(t0 - profile.t0[line]).astype(np.intp)  # the corner's sample
+    up = sign > 0
+    first = np.clip(np.where(up, k0 + int(start), k0 - int(start)), 0, n_samples - 1)
+    stop = np.where(up, fwd[line, first], bwd[line, first])
+    end = np.minimum(np.abs(stop - k0), most).astype(np.float64)
+    stop = np.where(up, k0 + end.astype(np.intp), k0 - end.astype(np.intp))
+    lo = np.clip(np.where(up, first, stop + 1), 0, n_samples)
+    hi = np.clip(np.where(up, stop, first + 1), 0, n_samples)
+    hits = np.maximum(cum[line, hi] - cum[line, lo], 0).astype(np.float64)
+    inside = (k0 >= 0) & (k0 < n_samples)
+    return np.where(inside, end, 0.0), np.where(inside, hits, 0.0)
+
+
+def _corner_graph(lines: Lines, profile: SupportProfile, image_shape: tuple[int, int],
+                  cfg: QuadConfig) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                                            NDArray[np.bool_], NDArray[np.bool_]]:
+    """The lines' intersections X (N, N, 2) and positions T (N, N) along each line, which
+    pairs of lines make a corner (N, N: an L-junction, :func:`_arm`), and which pairs could
+    be a cover's opposite sides (N, N: near-parallel, a plausible side length apart)."""
+    th = lines.theta
+    dth = np.abs(th[:, None] - th[None, :])
+    dth = np.minimum(dth, np.pi - dth)
+    X, T = _intersections(lines)
+    h, w = image_shape
+    # A corner may lie outside the image (a book cut by the frame): its lines still place it.
+    m = cfg.outside_frac * max(h, w)
+    inside = ((X[..., 0] > -m) & (X[..., 0] < w + m) & (X[..., 1] > -m) & (X[..., 1] < h + m))
+    corner = (dth > np.radians(cfg.min_corner_deg)) & inside & inside.T
+    ci, cj = np.nonzero(np.triu(corner, 1))
+    ok = _arm(profile, ci, T[ci, cj], cfg) & _arm(profile, cj, T[cj, ci], cfg)
+    corner[:] = False
+    corner[ci[ok], cj[ok]] = corner[cj[ok], ci[ok]] = True
+    sep = np.abs(lines.rho[:, None] - lines.rho[None, :])
+    sep = np.where(np.abs(th[:, None] - th[None, :]) > np.pi / 2,  # θ wrapped: ρ flips sign
+                   np.abs(lines.rho[:, None] + lines.rho[None, :]), sep)
+    par = (dth < np.radians(cfg.parallel_deg)) & (sep >= cfg.min_side_px * 0.5) & (sep <= cfg.max_side_px)
+    return X, T, corner, par
 
 
 def _pairs_within_rows(m: NDArray[np.bool_]) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:

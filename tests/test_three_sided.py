@@ -1,0 +1,96 @@
+"""Covers with one side unseen (rovis.segment.quads.three_sided_quads, Segmentation.open_pool)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from rovis.segment import CascadeController, SegmentConfig, canny, gradients, hough_lines
+from rovis.segment.boundary import open_candidates, roi_area
+from rovis.segment.lines import support_profile
+from rovis.segment.quads import _canonical, candidate_quads, order_corners, three_sided_quads
+
+H, W = 480, 640
+COVER = np.array([[212.0, 180.0], [452.0, 180.0], [468.0, 330.0], [196.0, 330.0]])  # px
+
+
+def far_side_hidden(noise: float = 2.0) -> np.ndarray:
+    """A light cover (180) on a grey desk (100), its far side (y = 180) against a band of
+    the cover's own brightness: no step there, while the band's edge beside the cover
+    makes a Hough line through the hidden side. Drawn 8x supersampled."""
+    S = 8
+    img = np.full((H * S, W * S), 100, np.float32)
+    img[:180 * S + S // 2] = 180  # the band ends where the cover's far side is
+    pts = np.rint((COVER * S + (S - 1) / 2) * 16).astype(np.int32)
+    cv2.fillPoly(img, [pts], 180, lineType=cv2.LINE_8, shift=4)
+    img = cv2.resize(img, (W, H), interpolation=cv2.INTER_AREA)
+    rng = np.random.default_rng(3)
+    return np.clip(img + rng.normal(0, noise, img.shape), 0, 255).astype(np.uint8)
+
+
+def _worst_corner_px(quads: np.ndarray) -> float:
+    """Worst corner error (px) of the nearest quad to COVER, inf if none."""
+    if len(quads) == 0:
+        return np.inf
+    err = np.linalg.norm(_canonical(quads) - order_corners(COVER)[None], axis=2).max(axis=1)
+    return float(err.min())
+
+
+def _chain(img: np.ndarray, T_H: float = 60.0):
+    grad = gradients(img)
+    edges = canny(grad, T_H)
+    lines = hough_lines(edges, 30, grad=grad, max_lines=100)
+    return grad, lines, support_profile(lines, edges, grad)
+
+
+def test_a_cover_whose_far_side_shows_no_step_is_closed_where_its_sides_end():
+    grad, lines, profile = _chain(far_side_hidden())
+    full = candidate_quads(lines, profile, grad.shape, roi_area(grad))
+    assert _worst_corner_px(full.corners) > 10.0  # no 4-cycle: the far side has no edge
+    open_ = three_sided_quads(lines, profile, grad.shape, roi_area(grad))
+    assert _worst_corner_px(open_.corners) < 3.0  # px: within the gap tolerance
+    k = int(np.argmin(np.linalg.norm(_canonical(open_.corners) - order_corners(COVER)[None],
+                                     axis=2).max(axis=1)))
+    assert open_.lines[k, 2] == -1 and open_.support[k, 2] == 0.0  # side 2 is the open one
+    assert np.all(open_.support[k, [0, 1, 3]] >= 0.7)
+
+
+def test_three_sided_candidates_need_three_supported_sides():
+    # the same cover with two sides gone: a bright L on the band gives no U
+    img = far_side_hidden()
+    img[:, :212] = img[0, 0]  # the band's brightness left of the cover: its left side gone
+    grad, lines, profile = _chain(img)
+    assert _worst_corner_px(three_sided_quads(lines, profile, grad.shape,
+                                              roi_area(grad)).corners) > 10.0
+
+
+def test_blank_images_give_no_three_sided_candidates():
+    for img in (np.zeros((H, W), np.uint8), np.full((H, W), 255, np.uint8)):
+        assert len(open_candidates(gradients(img), 60.0, SegmentConfig())) == 0
+
+
+def test_the_closed_loop_offers_them_to_stereo_in_its_open_pool():
+    grad = gradients(far_side_hidden())
+    seg = CascadeController(SegmentConfig(), warm_start=False).segment(grad)
+    assert _worst_corner_px(seg.corners) > 10.0  # the closed loop's covers miss it
+    assert _worst_corner_px(seg.open_pool.corners) < 3.0
+    np.testing.assert_allclose(seg.open_pool.corners[0], order_corners(seg.open_pool.corners[0]))
+    off = CascadeController(SegmentConfig(three_sided=False), warm_start=False).segment(grad)
+    assert len(off.open_pool) == 0
+
+
+def test_a_run_of_edge_pixels_ends_at_its_first_long_gap_both_ways():
+    from rovis.segment.lines import SupportProfile
+    from rovis.segment.quads import _run_end
+    hit = np.zeros(120, np.int32)
+    hit[10:60] = 1
+    hit[30:35] = 0  # a 5 px hole: shorter than the 8 px gap, the run goes on
+    profile = SupportProfile(np.concatenate([[0], np.cumsum(hit)]).astype(np.int32)[None],
+                             np.array([-50.0]))  # sample k at position k - 50
+    line = np.zeros(2, np.intp)
+    corner = np.array([5.0, 64.0]) - 50.0  # one corner before the run, one after it
+    end, hits = _run_end(profile, line, corner, np.array([1.0, -1.0]), 3.0, 8.0, 400.0)
+    np.testing.assert_array_equal(end, [55.0, 55.0])  # px to the run's far end: 60 and 9
+    np.testing.assert_array_equal(hits, [45.0, 45.0])  # its 50 samples less the hole
+    end, _ = _run_end(profile, line, corner, np.array([1.0, -1.0]), 3.0, 8.0, 20.0)
+    np.testing.assert_array_equal(end, [20.0, 20.0])  # at most ``most``
