@@ -148,3 +148,42 @@ def test_without_the_desk_plane_the_pools_are_not_asked(book, monkeypatch):
     off = DetectConfig(stereo=replace(DetectConfig().stereo, pool=False))
     Detector(rig, off).detect(img, img)  # switched off: not asked
     assert len(asked) == 1
+
+
+def test_a_book_from_the_three_sided_candidates(book):
+    # the same cover offered only among the candidates with one side unseen
+    P, grads, rig = book
+    quads = {cam: geometry.project(Q, P) for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
+    segs = {cam: replace(Segmentation.empty(100.0, 30), open_pool=_pool([q]))
+            for cam, q in quads.items()}
+    found = Detector(rig, DetectConfig())._from_pool(rig, segs, grads, [], DESK, None)
+    assert len(found) == 1
+    assert np.linalg.norm(found[0][1].pose.center - P.mean(axis=0)) < 0.005  # metres
+
+
+def test_a_pair_tilted_by_the_inward_cover_edge_search_is_refined_without_it(book, monkeypatch):
+    # A printed line inside a side facing the camera can pull one image's refined side
+    # inward (rovis.segment.boundary.cover_edge_offset): the pair then looks tilted. Here
+    # the right image's search is made to move the near corners 6 px along the epipolar
+    # lines (1 cm higher): the pair is refined again without it.
+    import rovis.pipeline as pipeline
+    P, grads, rig = book
+    quads = {cam: geometry.project(Q, P) for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
+    segs = {cam: replace(Segmentation.empty(100.0, 30), pool=_pool([q]))
+            for cam, q in quads.items()}
+    refine = pipeline.refine_quad
+    calls = []
+
+    def pulled(grad, corners, *, down=(0.0, 1.0)):
+        out = refine(grad, corners, down=down)
+        calls.append(tuple(down))
+        if grad is grads["right"] and tuple(down) != (0.0, 0.0):
+            out = out.copy()
+            out[np.argsort(out[:, 1])[2:]] -= [6.0, 0.0]  # the near corners 6 px off
+        return out
+
+    monkeypatch.setattr(pipeline, "refine_quad", pulled)
+    found = Detector(rig, DetectConfig())._from_pool(rig, segs, grads, [], DESK, None)
+    assert (0.0, 0.0) in calls
+    assert len(found) == 1
+    assert abs(found[0][1].pose.size[2] - 0.03) < 0.004  # metres: flat at its true height

@@ -482,14 +482,16 @@ class Detector:
                    desk_plane: NDArray[np.float64],
                    texture: dict[str, NDArray[np.float32]] | None,
                    ) -> list[tuple[Pair, BookDetection]]:
-        """Books from the two images' candidate pools (:attr:`Segmentation.pool`) where no
-        book is yet.
+        """Books from the two images' candidate pools (:attr:`Segmentation.pool`, then
+        :attr:`Segmentation.open_pool`) where no book is yet.
 
         The pairs of Hough quads that roughly make a flat, book-sized rectangle
         (:func:`rovis.stereo.pool_pairs`) are refined in both images (Hough corners are
         too coarse for a height: 1 px of disparity is ~1.5 cm) and kept if the refined
         pair still matches and is one (:func:`rovis.stereo.flat_rectangle`, the pose
-        checks' limits). The most edge pixels in both images first, each must pass the pose
+        checks' limits; failing that, refined without the inward search for the cover
+        edge, :func:`rovis.segment.boundary.refine_quad`'s ``down``, in one image or
+        both). The most edge pixels in both images first, each must pass the pose
         checks; a pair whose left quad holds two or more such pairs that fill it is taken
         for the union of touching books and gives way to them.
         """
@@ -509,22 +511,45 @@ class Detector:
         if len(pp) == 0:
             return []
         i, j = index["left"][pp.left], index["right"][pp.right]
-        refined: dict[tuple[str, int], NDArray[np.float64]] = {}
+        refined: dict[tuple[str, int, bool], NDArray[np.float64]] = {}
 
-        def sub_pixel(cam: str, k: int) -> NDArray[np.float64]:
-            if (cam, k) not in refined:
-                refined[cam, k] = refine_quad(grads[cam], pool[cam].corners[k])
-            return refined[cam, k]
+        def sub_pixel(cam: str, k: int, inward: bool = True) -> NDArray[np.float64]:
+            if (cam, k, inward) not in refined:
+                refined[cam, k, inward] = refine_quad(grads[cam], pool[cam].corners[k],
+                                                      down=(0.0, 1.0) if inward else (0.0, 0.0))
+            return refined[cam, k, inward]
 
-        left = np.array([sub_pixel("left", k) for k in i.tolist()])
-        right = np.array([np.roll(sub_pixel("right", k), -s, axis=0)
-                          for k, s in zip(j.tolist(), pp.shift.tolist())])
-        P = geometry.triangulate_dlt(rig.Q_L, rig.Q_R, left.reshape(-1, 2),
-                                     right.reshape(-1, 2)).reshape(-1, 4, 3)
-        ok = flat_rectangle(P, desk_plane, side_range=(0.8 * cfg.min_cover_side,
-                                                       cfg.max_cover_side),
-                            max_tilt_deg=cfg.max_tilt_deg,
-                            height_range=(cfg.stereo.min_height, cfg.stereo.max_cover_height))
+        def flat(left: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[np.bool_]:
+            P = geometry.triangulate_dlt(rig.Q_L, rig.Q_R, left.reshape(-1, 2),
+                                         right.reshape(-1, 2)).reshape(-1, 4, 3)
+            return flat_rectangle(P, desk_plane, side_range=(0.8 * cfg.min_cover_side,
+                                                             cfg.max_cover_side),
+                                  max_tilt_deg=cfg.max_tilt_deg,
+                                  height_range=(cfg.stereo.min_height,
+                                                cfg.stereo.max_cover_height))
+
+        def refine_pairs(index: NDArray[np.intp], inward: tuple[bool, bool],
+                         ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+            left = np.array([sub_pixel("left", k, inward[0]) for k in i[index].tolist()])
+            right = np.array([np.roll(sub_pixel("right", k, inward[1]), -s, axis=0)
+                              for k, s in zip(j[index].tolist(), pp.shift[index].tolist())])
+            return left.reshape(-1, 4, 2), right.reshape(-1, 4, 2)
+
+        every = np.arange(len(i))
+        left, right = refine_pairs(every, (True, True))
+        ok = flat(left, right)
+        # The refinement looks for a cover edge inside a side facing the camera (a page
+        # block below it); a printed line there can pull one image's side inward and tilt
+        # the cover. A pair that is no flat cover so is tried without that step, in one
+        # image, then in both.
+        for inward in ((False, True), (True, False), (False, False)):
+            retry = np.flatnonzero(~ok)
+            if len(retry) == 0:
+                break
+            l2, r2 = refine_pairs(retry, inward)
+            good = flat(l2, r2)
+            left[retry[good]], right[retry[good]] = l2[good], r2[good]
+            ok[retry[good]] = True
         keep = np.flatnonzero(ok)
         score = pool["left"].n_f[i[keep]] + pool["right"].n_f[j[keep]]
         keep = keep[np.argsort(-score, kind="stable")]
