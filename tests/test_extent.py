@@ -251,3 +251,43 @@ def test_stereo_places_a_cover_side_at_the_cover_height(lone_book):
             assert level == pytest.approx(THICKNESS, abs=0.005)
             assert extent._at_cover_height(P, s, Q, grads, up, drop, ExtentConfig())
     assert measured >= 1
+
+
+def test_a_cover_found_otherwise_is_not_grown_over_a_segmented_one(monkeypatch):
+    """Two touching books of one height: the extent step may take the edge beyond the
+    second for the first one's far side. A cover from the candidates (or one image, or the
+    height map) then keeps its sides instead of swallowing the cover both segmentations
+    found; a segmented cover grown over another found otherwise still takes its place."""
+    import rovis.pipeline as pipeline
+    from rovis.results import BookDetection
+    from rovis.segment.boundary import Segmentation
+
+    sc = sample_scene(3, lux=500.0, n_books=0)
+    det = Detector(sc.rig)
+    a = np.array([[100.0, 100], [200, 100], [200, 180], [100, 180]])
+    b = a + [105.0, 0.0]  # the touching neighbour, right of a
+    union = np.array([[100.0, 100], [305, 100], [305, 180], [100, 180]])
+
+    def book(pair):
+        pose = geometry.BookPose(np.zeros(3), np.eye(3), np.array([0.2, 0.1, 0.02]),
+                                 np.array([0.0, 0.0, 1.0]))
+        return BookDetection(0, pose, np.zeros((4, 3)), pair.left, pair.right, 0.0, 1.0,
+                             source=pair.source)
+
+    monkeypatch.setattr(pipeline, "fit_pair_extent",
+                        lambda quads, *args: {"left": union, "right": union}
+                        if np.allclose(quads["left"], a) else None)
+    monkeypatch.setattr(Detector, "_reconstruct_or_why",
+                        lambda self, rig, pair, *args: (pair, book(pair), ""))
+    for grown, other, kept in (("candidates", "segmentation", 2),
+                               ("segmentation", "candidates", 1)):
+        pa, pb = Pair(a, a, 1.0, 0.0, source=grown), Pair(b, b, 1.0, 0.0, source=other)
+        segs = {cam: Segmentation.empty(T_H=60.0) for cam in ("left", "right")}
+        out = det._fit_extents(sc.rig, segs, {}, [(pa, book(pa)), (pb, book(pb))],
+                               np.array([0.0, 0, 1, 0]))
+        assert len(out) == kept
+        if kept == 2:  # both as they were
+            np.testing.assert_array_equal(out[0][0].left, a)
+            np.testing.assert_array_equal(out[1][0].left, b)
+        else:  # the segmented cover, moved, in place of the other
+            np.testing.assert_array_equal(out[0][0].left, union)

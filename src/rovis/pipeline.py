@@ -697,7 +697,7 @@ class Detector:
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         strength = {cam: CANNY_LOW_RATIO * (segs[cam].T_H or self.cfg.segment.open_T_H)
                     for cam in Q}
-        out, moved = [], []
+        out, moved, before = [], [], {}
         for pair, book in found:
             new = fit_pair_extent({"left": pair.left, "right": pair.right}, Q, grads, strength,
                                   desk_plane, self.cfg.extent)
@@ -707,9 +707,21 @@ class Detector:
                                  right=np.roll(new["right"], -shift, axis=0))
                 bigger, fitted, _ = self._reconstruct_or_why(rig, bigger, desk_plane, texture)
                 if fitted is not None:
+                    before[len(out)] = (pair, book)
                     pair, book = bigger, fitted
                     moved.append(len(out))
             out.append((pair, book))
+        # A cover found otherwise than by both segmentations is not moved over one they
+        # found: two touching books of one height look like one cover cut by a printed
+        # line, and the segmented cover has the better evidence.
+        limit = self.cfg.stereo.transfer_max_overlap
+        for i in list(moved):
+            if out[i][1].source != "segmentation" and any(
+                    k != i and k not in moved and out[k][1].source == "segmentation"
+                    and quad_overlap(out[i][0].left, out[k][0].left) > limit
+                    for k in range(len(out))):
+                out[i] = before[i]
+                moved.remove(i)
         drop = set()
         for i in sorted(moved, key=lambda k: -cv2.contourArea(out[k][0].left.astype(np.float32))):
             if i in drop:
