@@ -93,7 +93,7 @@ def test_pool_pairs_pairs_the_same_cover_in_both_images(book):
 def test_pool_pairs_drops_a_tilted_pair_and_a_pattern_on_the_desk(book):
     P, _, rig = book
     tilted = _rectangle(center=(0.3, 0.2), tilt_deg=35.0, z=0.05)
-    on_desk = _rectangle(center=(0.6, 0.45), z=-0.03)  # below the loose height gate
+    on_desk = _rectangle(center=(0.6, 0.45), z=-0.06)  # below the loose height gate
     quads = [P, tilted, on_desk]
     pp = pool_pairs([geometry.project(rig.Q_L, q) for q in quads],
                     [geometry.project(rig.Q_R, q) for q in quads], rig.Q_L, rig.Q_R,

@@ -170,7 +170,7 @@ class PoolPairs:
 def pool_pairs(pool_left: ArrayLike, pool_right: ArrayLike, Q_L: ArrayLike, Q_R: ArrayLike, *,
                desk_plane: ArrayLike | None = None, side_range: tuple[float, float] = (0.05, 0.45),
                max_skew_deg: float = 25.0, max_tilt_deg: float = 25.0,
-               height_slack: float = 0.02, cfg: StereoConfig = StereoConfig()) -> PoolPairs:
+               height_slack: float = 0.04, cfg: StereoConfig = StereoConfig()) -> PoolPairs:
     """Every left × right pair of candidate quads that could be one book's cover.
 
     Beyond the paper. Each image's segmentation chooses its covers alone, by edge pixels;
