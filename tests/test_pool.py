@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from rovis import geometry
-from rovis.pipeline import DetectConfig, Detector, _is_union
+from rovis.pipeline import DetectConfig, Detector, _is_union, with_settings
 from rovis.segment import gradients
 from rovis.segment.boundary import Segmentation
 from rovis.segment.lines import Lines
@@ -187,3 +187,26 @@ def test_a_pair_tilted_by_the_inward_cover_edge_search_is_refined_without_it(boo
     assert (0.0, 0.0) in calls
     assert len(found) == 1
     assert abs(found[0][1].pose.size[2] - 0.03) < 0.004  # metres: flat at its true height
+
+
+def test_only_the_pairs_closest_to_their_epipolar_segments_are_refined(book, monkeypatch):
+    # busy texture gives thousands of pairs of candidates: StereoConfig.pool_max_pairs
+    # bounds the refinement to those the epipolar geometry fits best
+    import rovis.pipeline as pipeline
+    P, grads, rig = book
+    decoy = _rectangle(center=(0.7, 0.5), size=(0.15, 0.10), z=0.02, yaw_deg=-30.0)
+    off = geometry.project(rig.Q_R, decoy) + [0.0, 2.0]  # 2 px off its epipolar lines
+    segs = {"left": replace(Segmentation.empty(100.0, 30), pool=_pool(
+                [geometry.project(rig.Q_L, decoy), geometry.project(rig.Q_L, P)])),
+            "right": replace(Segmentation.empty(100.0, 30), pool=_pool(
+                [off, geometry.project(rig.Q_R, P)]))}
+    refined = []
+    refine = pipeline.refine_quad
+    monkeypatch.setattr(pipeline, "refine_quad",
+                        lambda grad, corners, **kw: refined.append(corners) or
+                        refine(grad, corners, **kw))
+    cfg = with_settings(DetectConfig(), ["stereo.pool_max_pairs=1"])
+    found = Detector(rig, cfg)._from_pool(rig, segs, grads, [], DESK, None)
+    assert len(found) == 1
+    assert np.linalg.norm(found[0][1].pose.center - P.mean(axis=0)) < 0.005  # metres
+    assert len(refined) == 2  # the book's quads, one per image; the decoy's not

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 
 from rovis.segment import CascadeController, SegmentConfig, canny, gradients, hough_lines
-from rovis.segment.boundary import open_candidates, roi_area
+from rovis.segment.boundary import evaluate, open_candidates, roi_area
 from rovis.segment.lines import support_profile
 from rovis.segment.quads import _canonical, candidate_quads, order_corners, three_sided_quads
 
@@ -66,7 +66,16 @@ def test_three_sided_candidates_need_three_supported_sides():
 
 def test_blank_images_give_no_three_sided_candidates():
     for img in (np.zeros((H, W), np.uint8), np.full((H, W), 255, np.uint8)):
-        assert len(open_candidates(gradients(img), 60.0, SegmentConfig())) == 0
+        grad = gradients(img)
+        ev = evaluate(grad, 60.0, SegmentConfig())
+        assert len(open_candidates(grad, ev, SegmentConfig())) == 0
+
+
+def test_an_evaluation_keeps_the_lines_and_hits_its_candidates_came_from():
+    grad = gradients(far_side_hidden())
+    ev = evaluate(grad, 60.0, SegmentConfig())
+    assert ev.all_lines is not None and len(ev.all_lines) >= len(ev.lines)
+    assert _worst_corner_px(open_candidates(grad, ev, SegmentConfig()).corners) < 3.0
 
 
 def test_the_closed_loop_offers_them_to_stereo_in_its_open_pool():

@@ -511,6 +511,10 @@ class Detector:
         if len(pp) == 0:
             return []
         i, j = index["left"][pp.left], index["right"][pp.right]
+        # on busy texture (thousands of pairs of candidates) only those closest to their
+        # epipolar segments are refined, which bounds the time
+        order = np.sort(np.argsort(pp.error_px, kind="stable")[:cfg.stereo.pool_max_pairs])
+        i, j, pp = i[order], j[order], pp.take(order)
         refined: dict[tuple[str, int, bool], NDArray[np.float64]] = {}
 
         def sub_pixel(cam: str, k: int, inward: bool = True) -> NDArray[np.float64]:
@@ -552,7 +556,7 @@ class Detector:
             ok[retry[good]] = True
         keep = np.flatnonzero(ok)
         score = pool["left"].n_f[i[keep]] + pool["right"].n_f[j[keep]]
-        keep = keep[np.argsort(-score, kind="stable")]
+        keep = keep[np.argsort(-score, kind="stable")]  # the most edge pixels first
         area = np.array([cv2.contourArea(q.astype(np.float32)) for q in left[keep]])
         out: list[tuple[Pair, BookDetection]] = []
         for rank, a in enumerate(keep.tolist()):

@@ -61,6 +61,7 @@ class StereoConfig:
     # Where no book is yet, books among the candidate quads neither image's selection kept
     # (Segmentation.pool): pairs that make a flat, book-sized rectangle (pool_pairs).
     pool: bool = True
+    pool_max_pairs: int = 300  # refined per frame, the most edge pixels first
 
 
 @dataclass(frozen=True, eq=False)
@@ -165,6 +166,10 @@ class PoolPairs:
 
     def __len__(self) -> int:
         return len(self.left)
+
+    def take(self, index: NDArray[np.intp]) -> PoolPairs:
+        return PoolPairs(self.left[index], self.right[index], self.corners_right[index],
+                         self.shift[index], self.error_px[index])
 
 
 def pool_pairs(pool_left: ArrayLike, pool_right: ArrayLike, Q_L: ArrayLike, Q_R: ArrayLike, *,

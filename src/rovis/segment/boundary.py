@@ -17,7 +17,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rovis.segment.edges import Gradients, canny
-from rovis.segment.lines import Lines, hough_lines, intersect, refine_segment, support_profile
+from rovis.segment.lines import (Lines, SupportProfile, hough_lines, intersect, refine_segment,
+                                 support_profile)
 from rovis.segment.quads import (CoverSelection, QuadConfig, Quads, _canonical, _distinct,
                                  candidate_quads, order_corners, three_sided_quads)
 from rovis.segment.quality import PRINTED, quality
@@ -73,11 +74,12 @@ class SegmentConfig:
         many Hough lines at its optimum's T_H, with this edge support per side
         (``quads.min_support`` for the covers), for the pool only (eq. 2 and the covers
         still use ``n_max``; measured in docs/stereo.md, "The height map").
-    three_sided : bool
-        Beyond the paper: at the T_H whose covers were kept, also offer stereo the
-        candidates with one side unseen (:func:`rovis.segment.quads.three_sided_quads`;
+    three_sided, three_sided_evaluations : bool, int
+        Beyond the paper: at the T_H whose covers were kept and at the
+        ``three_sided_evaluations`` of highest y, also offer stereo the candidates with one
+        side unseen (:func:`rovis.segment.quads.three_sided_quads`;
         :attr:`Segmentation.open_pool`). A cover of the desk's brightness shows almost no
-        step where it meets the desk behind it.
+        step where it meets the desk behind it (measured: docs/stereo.md).
     """
 
     n_max: int = 100
@@ -98,6 +100,7 @@ class SegmentConfig:
     pool_lines: int = 100
     pool_min_support: float = 0.7
     three_sided: bool = True
+    three_sided_evaluations: int = 3
     quads: QuadConfig = field(default_factory=QuadConfig)
 
 
@@ -112,6 +115,10 @@ class Evaluation:
     covers: Quads  # the selected cover candidates at T_HG
     inner_iterations: int
     selection: CoverSelection | None = None  # for the candidates the covers won over
+    # every line above T_HG_min (at most N_max) and their edge hits, which the candidates
+    # were formed from: for the three-sided candidates (open_candidates)
+    all_lines: Lines | None = None
+    profile: SupportProfile | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -226,7 +233,7 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
         y = quality(n, covers.n_f, area, cfg.n_max, sign=cfg.quality_sign)
         if best is None or y > best.y:
             best = Evaluation(T_H, t, y, lines.take(lines.votes >= t), covers, len(candidates),
-                              selection)
+                              selection, lines, profile)
     assert best is not None
     _lap(timing, "quads", clock)
     return best
@@ -299,19 +306,16 @@ def without_near(quads: Quads, others: Quads, tol_px: float) -> Quads:
     return quads.take(~near)
 
 
-def open_candidates(grad: Gradients, T_H: float, cfg: SegmentConfig, *,
+def open_candidates(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
                     area: float | None = None,
                     timing: dict[str, float] | None = None) -> Quads:
-    """The three-sided candidates (:func:`three_sided_quads`) of the chain at one T_H:
-    its N_max strongest Hough lines above ``T_HG_min`` (``timing``: under ``"three_sided"``)."""
+    """The three-sided candidates (:func:`three_sided_quads`) of one evaluation: from the
+    lines its candidates were formed from (``timing``: under ``"three_sided"``)."""
+    if ev.all_lines is None or ev.profile is None or len(ev.all_lines) < 3:
+        return Quads.empty()
     clock = time.perf_counter()
     area = roi_area(grad) if area is None else area
-    edges = canny(grad, T_H)
-    lines = hough_lines(edges, cfg.T_HG_min, grad=grad, max_lines=cfg.n_max, box=grad.box)
-    quads = Quads.empty()
-    if len(lines) >= 3:
-        profile = support_profile(lines, edges, grad, box=grad.box)
-        quads = three_sided_quads(lines, profile, grad.shape, area, cfg.quads)
+    quads = three_sided_quads(ev.all_lines, ev.profile, grad.shape, area, cfg.quads)
     _lap(timing, "three_sided", clock)
     return quads
 

@@ -104,13 +104,14 @@ class CascadeController:
         open_pool = None
         if self.cfg.three_sided and best.T_H > 0:
             # beyond the paper: covers with one side unseen, at the T_H whose covers were
-            # kept; those a full candidate already gives (all four sides seen) are left out
-            thresholds = [best.T_H] + [ev.T_H for ev in sources
-                                       if any(ev is e for e in seen.values())]
+            # kept and the best few others; those a full candidate already gives (all four
+            # sides seen) are left out
+            ranked = sorted((e for e in seen.values() if e.y > 0), key=lambda e: -e.y)
+            chosen = [best, *sources, *ranked[:self.cfg.three_sided_evaluations]]
+            chosen = [e for k, e in enumerate(chosen) if all(e is not c for c in chosen[:k])]
             open_pool = without_near(candidate_pool(
-                [open_candidates(grad, T_H, self.cfg, area=area, timing=timing)
-                 for T_H in dict.fromkeys(thresholds)], self.cfg.pool_size), full,
-                self.cfg.quads.duplicate_px)
+                [open_candidates(grad, e, self.cfg, area=area, timing=timing) for e in chosen],
+                self.cfg.pool_size), full, self.cfg.quads.duplicate_px)
         return finish(grad, best, iterations, timing=timing, alternatives=alternatives,
                       pool=full, refine=refine, open_pool=open_pool)
 
