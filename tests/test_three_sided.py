@@ -103,3 +103,16 @@ def test_a_run_of_edge_pixels_ends_at_its_first_long_gap_both_ways():
     np.testing.assert_array_equal(hits, [45.0, 45.0])  # its 50 samples less the hole
     end, _ = _run_end(profile, line, corner, np.array([1.0, -1.0]), 3.0, 8.0, 20.0)
     np.testing.assert_array_equal(end, [20.0, 20.0])  # at most ``most``
+
+
+def test_where_no_threshold_gave_a_cover_every_evaluation_offers_its_three_sided(monkeypatch):
+    import rovis.segment.control as control
+    asked = []
+    real = control.open_candidates
+    monkeypatch.setattr(control, "open_candidates",
+                        lambda grad, ev, *a, **k: asked.append(ev.T_H) or real(grad, ev, *a, **k))
+    seg = CascadeController(SegmentConfig(), warm_start=False).segment(
+        gradients(far_side_hidden()))
+    assert seg.y == 0.0  # no cover at any T_H
+    # every T_H the search evaluated (at least its coarse grid), each once
+    assert len(asked) == len(set(asked)) >= SegmentConfig().coarse_steps

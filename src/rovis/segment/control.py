@@ -108,6 +108,8 @@ class CascadeController:
             # sides seen) are left out
             ranked = sorted((e for e in seen.values() if e.y > 0), key=lambda e: -e.y)
             chosen = [best, *sources, *ranked[:self.cfg.three_sided_evaluations]]
+            if not ranked:  # no cover at any T_H (y = 0): each evaluation may hold one
+                chosen += list(seen.values())
             chosen = [e for k, e in enumerate(chosen) if all(e is not c for c in chosen[:k])]
             open_pool = without_near(candidate_pool(
                 [open_candidates(grad, e, self.cfg, area=area, timing=timing) for e in chosen],
