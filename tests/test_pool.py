@@ -171,20 +171,20 @@ def test_a_pair_tilted_by_the_inward_cover_edge_search_is_refined_without_it(boo
     quads = {cam: geometry.project(Q, P) for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
     segs = {cam: replace(Segmentation.empty(100.0, 30), pool=_pool([q]))
             for cam, q in quads.items()}
-    refine = pipeline.refine_quad
+    refine = pipeline.refine_quad_both
     calls = []
 
-    def pulled(grad, corners, *, down=(0.0, 1.0)):
-        out = refine(grad, corners, down=down)
-        calls.append(tuple(down))
-        if grad is grads["right"] and tuple(down) != (0.0, 0.0):
-            out = out.copy()
-            out[np.argsort(out[:, 1])[2:]] -= [6.0, 0.0]  # the near corners 6 px off
-        return out
+    def pulled(grad, corners, **kw):
+        inward, plain = refine(grad, corners, **kw)
+        calls.append(grad is grads["right"])
+        if grad is grads["right"]:
+            inward = inward.copy()
+            inward[np.argsort(inward[:, 1])[2:]] -= [6.0, 0.0]  # the near corners 6 px off
+        return inward, plain
 
-    monkeypatch.setattr(pipeline, "refine_quad", pulled)
+    monkeypatch.setattr(pipeline, "refine_quad_both", pulled)
     found = Detector(rig, DetectConfig())._from_pool(rig, segs, grads, [], DESK, None)
-    assert (0.0, 0.0) in calls
+    assert calls == [False, True]  # each image's quad refined once, both ways
     assert len(found) == 1
     assert abs(found[0][1].pose.size[2] - 0.03) < 0.004  # metres: flat at its true height
 
@@ -201,8 +201,8 @@ def test_only_the_pairs_closest_to_their_epipolar_segments_are_refined(book, mon
             "right": replace(Segmentation.empty(100.0, 30), pool=_pool(
                 [off, geometry.project(rig.Q_R, P)]))}
     refined = []
-    refine = pipeline.refine_quad
-    monkeypatch.setattr(pipeline, "refine_quad",
+    refine = pipeline.refine_quad_both
+    monkeypatch.setattr(pipeline, "refine_quad_both",
                         lambda grad, corners, **kw: refined.append(corners) or
                         refine(grad, corners, **kw))
     cfg = with_settings(DetectConfig(), ["stereo.pool_max_pairs=1"])

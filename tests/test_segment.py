@@ -344,3 +344,13 @@ def test_linear_gradients_put_a_gamma_encoded_edge_back_in_place():
     assert x_at["gamma"] < edge - 0.2  # the encoded edge's steepest step: on the dark side
     with pytest.raises(ValueError, match="gamma"):
         linear_gradients(img, gamma=0.0)
+
+
+def test_refining_both_ways_at_once_gives_each_way_s_corners():
+    from rovis.segment.boundary import refine_quad, refine_quad_both
+    img, truth = drawn_scene()
+    grad = gradients(img)
+    for quad in truth + np.array([[1.5, -1.0], [-1.0, 2.0], [0.5, 1.5], [2.0, 0.5]]):
+        inward, plain = refine_quad_both(grad, quad)
+        np.testing.assert_array_equal(inward, refine_quad(grad, quad))
+        np.testing.assert_array_equal(plain, refine_quad(grad, quad, down=(0.0, 0.0)))

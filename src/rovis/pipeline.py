@@ -34,7 +34,7 @@ from rovis.results import BookDetection, FrameResult, SegmentationInfo
 from rovis.segment import CascadeController, SegmentConfig, Segmentation, gradients
 from rovis.segment.edges import CANNY_LOW_RATIO, Gradients
 from rovis.segment.methods import METHODS, segment
-from rovis.segment.boundary import refine_quad
+from rovis.segment.boundary import refine_quad, refine_quad_both
 from rovis.segment.quads import Quads, order_corners, quad_overlap
 from rovis.stereo import (Match, StereoConfig, find_in_other_view, flat_rectangle, match_quads,
                           pool_pairs)
@@ -515,13 +515,13 @@ class Detector:
         # epipolar segments are refined, which bounds the time
         order = np.sort(np.argsort(pp.error_px, kind="stable")[:cfg.stereo.pool_max_pairs])
         i, j, pp = i[order], j[order], pp.take(order)
-        refined: dict[tuple[str, int, bool], NDArray[np.float64]] = {}
+        refined: dict[tuple[str, int], tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
 
         def sub_pixel(cam: str, k: int, inward: bool = True) -> NDArray[np.float64]:
-            if (cam, k, inward) not in refined:
-                refined[cam, k, inward] = refine_quad(grads[cam], pool[cam].corners[k],
-                                                      down=(0.0, 1.0) if inward else (0.0, 0.0))
-            return refined[cam, k, inward]
+            # with and without the inward search at once: most pairs are tried both ways
+            if (cam, k) not in refined:
+                refined[cam, k] = refine_quad_both(grads[cam], pool[cam].corners[k])
+            return refined[cam, k][0 if inward else 1]
 
         def flat(left: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[np.bool_]:
             P = geometry.triangulate_dlt(rig.Q_L, rig.Q_R, left.reshape(-1, 2),

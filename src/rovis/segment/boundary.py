@@ -330,20 +330,49 @@ def refine_quad(grad: Gradients, corners: NDArray[np.float64], *,
     edge is looked for inside the first one (:func:`cover_edge_offset`). A side that cannot
     be refit keeps its Hough position.
     """
+    return _refit(grad, corners, down, both=False)[0]
+
+
+def refine_quad_both(grad: Gradients, corners: NDArray[np.float64], *,
+                     down: tuple[float, float] = (0.0, 1.0),
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`refine_quad` with the inward search for the cover edge and without it
+    (``down`` = (0, 0)), sharing the fits of the sides the search leaves where they are."""
+    inward, plain = _refit(grad, corners, down, both=True)
+    assert plain is not None
+    return inward, plain
+
+
+def _refit(grad: Gradients, corners: NDArray[np.float64], down: tuple[float, float], *,
+           both: bool) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+    """:func:`refine_quad`'s corners, and (``both``) those without the inward search."""
     center = corners.mean(axis=0)
-    sides = []
+    inward, plain = [], []
     for s in range(4):
         a, b = corners[s], corners[(s + 1) % 4]
         d = (b - a) / np.linalg.norm(b - a)
         n_in = np.array([-d[1], d[0]])
         if n_in @ (center - a) < 0:
             n_in = -n_in
+        shift = 0.0
         if -n_in @ np.asarray(down) > 0.05:
             across = float(np.max((corners - a) @ n_in))  # the quad's extent across this side
             shift = cover_edge_offset(grad, a, b, n_in, max_px=min(25.0, 0.2 * across))
-            a, b = a + shift * n_in, b + shift * n_in
-        fit = refine_segment(grad, a, b)
-        sides.append(fit if fit is not None else (0.5 * (a + b), d))
+        fits = [(a + shift * n_in, b + shift * n_in)]
+        if both and shift != 0.0:
+            fits.append((a, b))
+        for k, (p, q) in enumerate(fits):
+            fit = refine_segment(grad, p, q)
+            (inward if k == 0 else plain).append(fit if fit is not None else (0.5 * (p + q), d))
+        if both and shift == 0.0:
+            plain.append(inward[-1])
+    return _join(inward, corners), (_join(plain, corners) if both else None)
+
+
+def _join(sides: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
+          corners: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Corners (4, 2) where neighbouring refitted sides (point, direction) meet; a corner
+    whose sides meet more than 40 px from it (or not at all) stays."""
     out = corners.copy()
     for s in range(4):  # corner s joins side s-1 and side s
         p = intersect(*sides[s - 1], *sides[s])
