@@ -311,9 +311,12 @@ def _fit_line(pts: NDArray[np.float64], *, outlier_px: float = 1.0) -> tuple[NDA
     """Total-least-squares line through ``pts`` (M, 2), refit once without > outlier_px points."""
     for _ in range(2):
         c = pts.mean(axis=0)
-        _, s, Vt = np.linalg.svd(pts - c, full_matrices=False)
-        d = Vt[0]
-        resid = np.abs((pts - c) @ np.array([-d[1], d[0]]))
+        x, y = pts[:, 0] - c[0], pts[:, 1] - c[1]
+        # the principal axis of the 2x2 scatter in closed form (what an SVD of the
+        # centred points gives, at a fraction of its cost on a few hundred points)
+        angle = 0.5 * np.arctan2(2.0 * (x @ y), x @ x - y @ y)
+        d = np.array([np.cos(angle), np.sin(angle)])
+        resid = np.abs(x * -d[1] + y * d[0])
         inliers = resid < max(outlier_px, 2.5 * _median(resid))
         if inliers.all() or inliers.sum() < 6:
             break
