@@ -80,8 +80,9 @@ def test_an_evaluation_keeps_the_lines_and_hits_its_candidates_came_from():
 
 def test_the_closed_loop_offers_them_to_stereo_in_its_open_pool():
     grad = gradients(far_side_hidden())
-    seg = CascadeController(SegmentConfig(), warm_start=False).segment(grad)
-    assert _worst_corner_px(seg.corners) > 10.0  # the closed loop's covers miss it
+    seg = CascadeController(SegmentConfig(three_sided_support=2.0),
+                            warm_start=False).segment(grad)
+    assert _worst_corner_px(seg.corners) > 10.0  # the closed loop's own covers miss it
     assert _worst_corner_px(seg.open_pool.corners) < 3.0
     np.testing.assert_allclose(seg.open_pool.corners[0], order_corners(seg.open_pool.corners[0]))
     off = CascadeController(SegmentConfig(three_sided=False), warm_start=False).segment(grad)
@@ -116,3 +117,23 @@ def test_where_no_threshold_gave_a_cover_every_evaluation_offers_its_three_sided
     assert seg.y == 0.0  # no cover at any T_H
     # every T_H the search evaluated (at least its coarse grid), each once
     assert len(asked) == len(set(asked)) >= SegmentConfig().coarse_steps
+
+
+def test_a_three_sided_candidate_with_its_three_sides_clearly_seen_is_a_cover():
+    grad = gradients(far_side_hidden())
+    seg = CascadeController(SegmentConfig(), warm_start=False).segment(grad)
+    assert len(seg) == 1 and _worst_corner_px(seg.corners) < 3.0  # px
+    assert len(seg.alternatives) in (0, 1)
+    # where a cover already lies, or below the support asked for, it stays a candidate
+    from rovis.segment.control import with_three_sided_covers
+    from rovis.segment.boundary import Evaluation
+    from rovis.segment.lines import Lines
+    from rovis.segment.quads import Quads
+    pool = seg.open_pool
+    one = Quads(np.zeros((1, 4), np.intp), COVER[None] + 1.0, np.ones((1, 4)), np.ones(1),
+                np.ones(1, np.int64))
+    ev = Evaluation(60.0, 30, 1.0, Lines.empty(), one, 1)
+    assert len(with_three_sided_covers(ev, (), pool, 0.95, 0.15)[0].covers) == 1
+    empty = Evaluation(60.0, 30, 0.0, Lines.empty(), Quads.empty(), 1)
+    assert len(with_three_sided_covers(empty, (), pool, 0.95, 0.15)[0].covers) >= 1
+    assert len(with_three_sided_covers(empty, (), pool, 1.01, 0.15)[0].covers) == 0

@@ -80,6 +80,10 @@ class SegmentConfig:
         side unseen (:func:`rovis.segment.quads.three_sided_quads`;
         :attr:`Segmentation.open_pool`). A cover of the desk's brightness shows almost no
         step where it meets the desk behind it (measured: docs/stereo.md).
+    three_sided_support : float
+        Beyond the paper: a three-sided candidate whose seen sides are all this much
+        covered by edge pixels, overlapping no cover, is kept as a cover of the image too
+        (:func:`rovis.segment.control.with_three_sided_covers`; above 1: never).
     """
 
     n_max: int = 100
@@ -101,6 +105,7 @@ class SegmentConfig:
     pool_min_support: float = 0.7
     three_sided: bool = True
     three_sided_evaluations: int = 3
+    three_sided_support: float = 0.95
     quads: QuadConfig = field(default_factory=QuadConfig)
 
 

@@ -114,6 +114,10 @@ class CascadeController:
             open_pool = without_near(candidate_pool(
                 [open_candidates(grad, e, self.cfg, area=area, timing=timing) for e in chosen],
                 self.cfg.pool_size), full, self.cfg.quads.duplicate_px)
+            if self.cfg.three_sided_support <= 1.0:
+                best, alternatives = with_three_sided_covers(
+                    best, alternatives, open_pool, self.cfg.three_sided_support,
+                    self.cfg.quads.max_overlap)
         return finish(grad, best, iterations, timing=timing, alternatives=alternatives,
                       pool=full, refine=refine, open_pool=open_pool)
 
@@ -191,3 +195,32 @@ def with_other_covers(best: Evaluation, evaluations: Iterable[Evaluation], max_o
     if not extra:
         return best, [], alternatives
     return replace(best, covers=Quads.concat([best.covers, *extra])), sources, alternatives
+
+
+def with_three_sided_covers(best: Evaluation, alternatives: tuple[np.ndarray, ...],
+                            open_pool: Quads, min_support: float, max_overlap: float,
+                            ) -> tuple[Evaluation, tuple[np.ndarray, ...]]:
+    """``best`` with the three-sided candidates (:func:`rovis.segment.quads.three_sided_quads`)
+    whose three seen sides are all at least ``min_support`` covered by edge pixels, where
+    they overlap no cover kept so far by more than ``max_overlap`` (of the smaller), the
+    most edge pixels first; each new cover has no alternatives.
+
+    Beyond the paper: a cover of the desk's brightness, or one meeting its own shadow,
+    shows three sides and no fourth; with all three clearly seen it is kept as a cover of
+    the image (measured: docs/segmentation.md), not only offered to stereo.
+    """
+    kept = list(best.covers.corners)
+    extra = []
+    for k in range(len(open_pool)):  # the most edge pixels first
+        seen = np.delete(open_pool.support[k], 2)  # side 2 is the open one
+        quad = open_pool.corners[k]
+        if seen.min() >= min_support and not any(
+                quad_overlap(quad, q) > max_overlap for q in kept):
+            kept.append(quad)
+            extra.append(k)
+    if not extra:
+        return best, alternatives
+    covers = Quads.concat([best.covers, open_pool.take(np.array(extra))])
+    if alternatives:
+        alternatives = alternatives + tuple(np.zeros((0, 4, 2)) for _ in extra)
+    return replace(best, covers=covers), alternatives
