@@ -100,7 +100,8 @@ def test_a_run_of_edge_pixels_ends_at_its_first_long_gap_both_ways():
     line = np.zeros(2, np.intp)
     corner = np.array([5.0, 64.0]) - 50.0  # one corner before the run, one after it
     end, hits = _run_end(profile, line, corner, np.array([1.0, -1.0]), 3.0, 8.0, 400.0)
-    np.testing.assert_array_equal(end, [55.0, 55.0])  # px to the run's far end: 60 and 9
+    # px to the gap's first sample, one past the run's last hit: samples 60 and 9
+    np.testing.assert_array_equal(end, [55.0, 55.0])
     np.testing.assert_array_equal(hits, [45.0, 45.0])  # its 50 samples less the hole
     end, _ = _run_end(profile, line, corner, np.array([1.0, -1.0]), 3.0, 8.0, 20.0)
     np.testing.assert_array_equal(end, [20.0, 20.0])  # at most ``most``
@@ -123,7 +124,9 @@ def test_a_three_sided_candidate_with_its_three_sides_clearly_seen_is_a_cover():
     grad = gradients(far_side_hidden())
     seg = CascadeController(SegmentConfig(), warm_start=False).segment(grad)
     assert len(seg) == 1 and _worst_corner_px(seg.corners) < 3.0  # px
-    assert len(seg.alternatives) in (0, 1)
+    assert seg.three_sided.tolist() == [True]
+    assert seg.support[0] >= 0.95  # of its three seen sides, not diluted by the open one
+    assert seg.alternatives == ()  # no cover at any T_H: the union kept none
     # where a cover already lies, or below the support asked for, it stays a candidate
     from rovis.segment.control import with_three_sided_covers
     from rovis.segment.boundary import Evaluation
@@ -134,6 +137,27 @@ def test_a_three_sided_candidate_with_its_three_sides_clearly_seen_is_a_cover():
                 np.ones(1, np.int64))
     ev = Evaluation(60.0, 30, 1.0, Lines.empty(), one, 1)
     assert len(with_three_sided_covers(ev, (), pool, 0.95, 0.15)[0].covers) == 1
+    far = Quads(np.zeros((1, 4), np.intp), COVER[None] + [[0.0, 200.0]], np.ones((1, 4)),
+                np.ones(1), np.ones(1, np.int64))  # a cover elsewhere, with an alternative
+    ev = Evaluation(60.0, 30, 1.0, Lines.empty(), far, 1)
+    got, alts = with_three_sided_covers(ev, (np.ones((2, 4, 2)),), pool, 0.95, 0.15)
+    assert len(got.covers) == len(alts) == 2  # one alternatives entry per cover
+    assert alts[0].shape == (2, 4, 2) and alts[1].shape == (0, 4, 2)
     empty = Evaluation(60.0, 30, 0.0, Lines.empty(), Quads.empty(), 1)
     assert len(with_three_sided_covers(empty, (), pool, 0.95, 0.15)[0].covers) >= 1
     assert len(with_three_sided_covers(empty, (), pool, 1.01, 0.15)[0].covers) == 0
+
+
+def test_a_segmented_cover_with_a_side_unseen_must_stand_as_high_as_any_found_otherwise():
+    # a quad of three lines on a flat pattern of the desk is no book: the 6 mm floor of
+    # the covers found otherwise than by both segmentations applies to it too
+    from rovis import geometry
+    from rovis.pipeline import DetectConfig, Detector, Pair
+    from rovis.synth import sample_scene
+    det = Detector(sample_scene(3, lux=500.0, n_books=0).rig, DetectConfig())
+    desk = np.array([0.0, 0.0, 1.0, 0.0])
+    P = geometry.corners_from_pose((0.4, 0.3, 0.004), np.eye(3), (0.2, 0.14))  # 4 mm up
+    pose = geometry.pose_from_corners(P, desk)
+    quad = np.zeros((4, 2))
+    assert det._pose_fails(pose, P, desk, Pair(quad, quad, 1.0, 0.0)) == ""
+    assert det._pose_fails(pose, P, desk, Pair(quad, quad, 1.0, 0.0, three_sided=True)) == "height"

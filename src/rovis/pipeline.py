@@ -205,6 +205,7 @@ class Pair:
     # from the candidate pools ("candidates", Detector._from_pool) or the height map
     # ("height map"); "one image" comes from ``transferred``
     source: str = "segmentation"
+    three_sided: bool = False  # a segmented cover with its fourth side unseen (either image)
 
 
 class Detector:
@@ -307,7 +308,8 @@ class Detector:
                               gray_right=ideal["right"], cfg=self.cfg.stereo)
         pairs = [Pair(segs["left"].corners[mt.left], mt.corners_right,
                       float(min(segs["left"].support[mt.left], segs["right"].support[mt.right])),
-                      mt.error_px) for mt in matches]
+                      mt.error_px, three_sided=_three_sided(segs["left"], mt.left)
+                      or _three_sided(segs["right"], mt.right)) for mt in matches]
         lap("stereo")
         # the print inside each cover, both images, for the height test (rovis.sweep)
         texture = ({cam: high_pass(ideal[cam], self.cfg.sweep.sigma_px) for cam in ideal}
@@ -696,8 +698,9 @@ class Detector:
         """Books whose cover stops at a printed line or reaches beyond its end, with their
         sides moved to the cover's edges (:mod:`rovis.extent`; the moved cover must pass the
         pose checks again, e.g. its size, and its print's height test). A book overlapping a
-        moved cover (its other part) gives way to it. The moved cover keeps its pair's
-        ``quality`` and ``error_px``."""
+        moved cover (its other part) gives way to it, except that a cover found otherwise
+        than by both segmentations, with every side seen, is not moved over one so found.
+        The moved cover keeps its pair's ``quality`` and ``error_px``."""
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         strength = {cam: CANNY_LOW_RATIO * (segs[cam].T_H or self.cfg.segment.open_T_H)
                     for cam in Q}
@@ -719,9 +722,13 @@ class Detector:
         # found: two touching books of one height look like one cover cut by a printed
         # line, and the segmented cover has the better evidence.
         limit = self.cfg.stereo.transfer_max_overlap
+
+        def segmented(k: int) -> bool:  # both images' segmentations, every side seen
+            return out[k][1].source == "segmentation" and not out[k][0].three_sided
+
         for i in list(moved):
-            if out[i][1].source != "segmentation" and any(
-                    k != i and k not in moved and out[k][1].source == "segmentation"
+            if not segmented(i) and any(
+                    k != i and k not in moved and segmented(k)
                     and quad_overlap(out[i][0].left, out[k][0].left) > limit
                     for k in range(len(out))):
                 out[i] = before[i]
@@ -759,10 +766,11 @@ class Detector:
         if _tilt_deg(pose, desk_plane) > self.cfg.max_tilt_deg:
             return "tilted"
         # a cover found in one image only (or among the alternatives, the candidates or in
-        # the height map) must stand as high as the search assumed: a flat pattern on the
-        # desk (a sheet, a seam rectangle) is no book
+        # the height map, or with a side unseen) must stand as high as the search assumed:
+        # a flat pattern on the desk (a sheet, a seam rectangle) is no book
         low = (self.cfg.stereo.min_height
-               if pair.transferred or pair.alternative or pair.source != "segmentation" else 0.0)
+               if pair.transferred or pair.alternative or pair.three_sided
+               or pair.source != "segmentation" else 0.0)
         if not low < pose.size[2] <= self.cfg.stereo.max_height:
             return "height"
         # a side lying on the desk is a line on the desk (a shadow's edge, the page
@@ -848,6 +856,12 @@ class Detector:
             reprojection_error_px=float(reproj.mean()),
             quality=pair.quality, stereo_error_px=pair.error_px,
             source="one image" if pair.transferred else pair.source), ""
+
+
+def _three_sided(seg: Segmentation, k: int) -> bool:
+    """Whether cover ``k`` of ``seg`` has its fourth side unseen
+    (:attr:`Segmentation.three_sided`)."""
+    return bool(k < len(seg.three_sided) and seg.three_sided[k])
 
 
 def _is_union(a: int, quads: NDArray[np.float64], area: NDArray[np.float64],

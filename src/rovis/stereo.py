@@ -61,7 +61,7 @@ class StereoConfig:
     # Where no book is yet, books among the candidate quads neither image's selection kept
     # (Segmentation.pool): pairs that make a flat, book-sized rectangle (pool_pairs).
     pool: bool = True
-    pool_max_pairs: int = 300  # refined per frame, the most edge pixels first
+    pool_max_pairs: int = 300  # refined per frame, the smallest epipolar error first
 
 
 @dataclass(frozen=True, eq=False)

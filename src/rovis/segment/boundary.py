@@ -76,8 +76,8 @@ class SegmentConfig:
         still use ``n_max``; measured in docs/stereo.md, "The height map").
     three_sided, three_sided_evaluations : bool, int
         Beyond the paper: at the T_H whose covers were kept and at the
-        ``three_sided_evaluations`` of highest y, also offer stereo the candidates with one
-        side unseen (:func:`rovis.segment.quads.three_sided_quads`;
+        ``three_sided_evaluations`` of highest y (at every evaluated T_H where none gave a
+        cover), also offer stereo the candidates with one side unseen (:func:`rovis.segment.quads.three_sided_quads`;
         :attr:`Segmentation.open_pool`). A cover of the desk's brightness shows almost no
         step where it meets the desk behind it (measured: docs/stereo.md).
     three_sided_support : float
@@ -138,7 +138,8 @@ class Segmentation:
     coarse : ndarray, shape (K, 4, 2)
         The same corners from Hough line intersections alone (before refinement).
     support : ndarray, shape (K,)
-        Mean fraction of each cover's sides covered by edge pixels.
+        Mean fraction of each cover's sides covered by edge pixels (its seen sides, for a
+        three-sided cover).
     lines : Lines
         The Hough lines above T_HG (for overlays).
     T_H, T_HG, y : the thresholds used and the quality they reached (eq. 2)
@@ -161,8 +162,14 @@ class Segmentation:
     open_pool : Quads
         Beyond the paper: candidates with three sides on Hough lines and the fourth (side
         2) where the edges of the two beside it end (:func:`three_sided_quads`; with
-        ``SegmentConfig.three_sided``), eq. 1 order, the most edge pixels first, for
-        stereo like :attr:`pool`.
+        ``SegmentConfig.three_sided``), corners in eq. 1 order, the most edge pixels
+        first, for stereo like :attr:`pool`. Its ``lines`` and ``support`` keep each
+        candidate's own cyclic order (side 2, ``lines`` −1 and ``support`` 0, is the open
+        one), not the corners' eq. 1 order.
+    three_sided : ndarray, shape (K,), bool
+        Per cover, whether it is one of the three-sided candidates, kept as a cover
+        (``SegmentConfig.three_sided_support``): its fourth side unseen; its ``support``
+        is that of the three seen sides. Empty where no cover is.
     """
 
     corners: NDArray[np.float64]
@@ -176,6 +183,7 @@ class Segmentation:
     alternatives: tuple[NDArray[np.float64], ...] = ()
     pool: Quads = field(default_factory=Quads.empty)
     open_pool: Quads = field(default_factory=Quads.empty)
+    three_sided: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
 
     def __len__(self) -> int:
         return len(self.corners)
@@ -279,9 +287,11 @@ def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
         refined.append(order_corners(refine_quad(refine or grad, quad)))
         coarse.append(order_corners(quad))
     _lap(timing, "refine", clock)
-    return Segmentation(np.array(refined), np.array(coarse), ev.covers.support.mean(axis=1),
-                        ev.lines, ev.T_H, ev.T_HG, ev.y, iterations, alternatives, pool=pool,
-                        open_pool=open_pool)
+    seen = ev.covers.lines >= 0  # a three-sided cover's open side has no line (-1)
+    support = (ev.covers.support * seen).sum(axis=1) / seen.sum(axis=1)  # of the seen sides
+    return Segmentation(np.array(refined), np.array(coarse), support, ev.lines, ev.T_H,
+                        ev.T_HG, ev.y, iterations, alternatives, pool=pool,
+                        open_pool=open_pool, three_sided=~seen.all(axis=1))
 
 
 def candidate_pool(parts: Iterable[Quads], most: int = 400, duplicate_px: float = 3.0) -> Quads:

@@ -102,7 +102,7 @@ class CascadeController:
                 pool.append(candidate_pool([wide.selection.quads], self.cfg.pool_size))
         full = candidate_pool(pool, self.cfg.pool_size)
         open_pool = None
-        if self.cfg.three_sided and best.T_H > 0:
+        if self.cfg.three_sided:
             # beyond the paper: covers with one side unseen, at the T_H whose covers were
             # kept and the best few others; those a full candidate already gives (all four
             # sides seen) are left out
@@ -110,7 +110,10 @@ class CascadeController:
             chosen = [best, *sources, *ranked[:self.cfg.three_sided_evaluations]]
             if not ranked:  # no cover at any T_H (y = 0): each evaluation may hold one
                 chosen += list(seen.values())
-            chosen = [e for k, e in enumerate(chosen) if all(e is not c for c in chosen[:k])]
+            # one evaluation may appear as itself and as a copy with more covers
+            # (with_other_covers): the same lines and edge hits, asked once
+            chosen = [e for k, e in enumerate(chosen)
+                      if all(e.profile is not c.profile for c in chosen[:k])]
             open_pool = without_near(candidate_pool(
                 [open_candidates(grad, e, self.cfg, area=area, timing=timing) for e in chosen],
                 self.cfg.pool_size), full, self.cfg.quads.duplicate_px)

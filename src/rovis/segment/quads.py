@@ -254,7 +254,11 @@ def _run_end(profile: SupportProfile, line: NDArray[np.intp], t0: NDArray[np.flo
     px); and the hits on the way (vectorised over the lines).
 
     Each line's nearest gap ahead of and behind every sample is found once, by a running
-    minimum (maximum) over the samples where a gap starts (ends), so a run costs O(1).
+    minimum (maximum) over the samples where a gap starts (ends), so a run costs O(1). The
+    end is the gap's first sample, one past the last hit (a hit is an edge pixel within
+    1 px): that makes up for Canny's rounding of a corner, whose edge stops short of it
+    (on the drawn cover of tests/test_three_sided.py the far corners come out within 2 px;
+    one or two pixels shorter, within 3 and 4).
     """
     cum = profile.cum  # (N, L + 1): hits before each sample
     n_samples = cum.shape[1] - 1
