@@ -247,3 +247,41 @@ def test_settings_by_name_reach_nested_fields_and_name_bad_ones():
                       ("method=foo", "method")):
         with pytest.raises(ValueError, match=word):
             with_settings(DetectConfig(), [bad])
+
+
+def test_a_cover_is_found_in_the_other_image_with_one_side_along_the_epipolar_lines_unseen(scene):
+    # a far side of the desk's brightness shows no step in either image: the sides across
+    # the epipolar lines still place the cover; without one of those, no cover
+    import cv2
+    from dataclasses import replace
+    sc, r = scene
+    rig = sc.rig
+    gray_l, _ = _ideal_grad(rig, r.left, "left")
+    gray_r, grad_r = _ideal_grad(rig, r.right, "right")
+    checked = {"along": 0, "across": 0}
+    for b in r.truth["books"]:
+        if min(b["visible_left"], b["visible_right"]) < 0.99:
+            continue
+        P = np.array(b["corners"])
+        src, dst = _ideal(rig, P, rig.Q_L), _ideal(rig, P, rig.Q_R)
+        args = (src, rig.Q_L, rig.Q_R, r.truth["desk_plane"])
+        if find_in_other_view(*args, grad_r, 10.0, gray_from=gray_l, gray_to=gray_r) is None:
+            continue
+        for s in range(4):
+            a, c = dst[s], dst[(s + 1) % 4]
+            slope = abs(c[1] - a[1]) / np.linalg.norm(c - a)  # epipolar lines: about horizontal
+            kind = "along" if slope < 0.25 else "across" if slope > 0.8 else None
+            if kind is None:
+                continue
+            mask = np.zeros(grad_r.shape, np.uint8)  # the side's middle 70 %, 7 px wide
+            cv2.line(mask, tuple(np.rint(a + 0.15 * (c - a)).astype(int)),
+                     tuple(np.rint(a + 0.85 * (c - a)).astype(int)), 255, 7)
+            blind = replace(grad_r, dx=np.where(mask > 0, 0, grad_r.dx).astype(grad_r.dx.dtype),
+                            dy=np.where(mask > 0, 0, grad_r.dy).astype(grad_r.dy.dtype))
+            got = find_in_other_view(*args, blind, 10.0, gray_from=gray_l, gray_to=gray_r)
+            if kind == "along":
+                assert got is not None and np.abs(got[0] - dst).max() < 1.5  # px
+            else:
+                assert got is None
+            checked[kind] += 1
+    assert checked["along"] >= 1 and checked["across"] >= 1

@@ -279,8 +279,9 @@ def find_in_other_view(corners: ArrayLike, Q_from: ArrayLike, Q_to: ArrayLike,
     in four points, whose projections are the cover in the other image. h is swept from
     ``cfg.min_height`` to ``cfg.max_cover_height``; the h whose predicted sides show the
     strongest edges (median gradient across each, best of ±1 px, weighted by how much the
-    side crosses the epipolar lines) wins if every side reaches ``min_strength``; its sides
-    are refit to the gradient (:func:`rovis.segment.boundary.refine_quad`). Used for
+    side crosses the epipolar lines) wins if every side reaches ``min_strength`` (but one
+    within 30° of the epipolar lines may fall short: beyond the paper, a far side of the
+    desk's brightness shows no step); its sides are refit to the gradient (:func:`rovis.segment.boundary.refine_quad`). Used for
     covers the segmentation found in one image only: their edges are often there in the
     other image too, just below what its Hough stage kept.
 
@@ -325,7 +326,11 @@ def find_in_other_view(corners: ArrayLike, Q_from: ArrayLike, Q_to: ArrayLike,
         np.linalg.norm(side, axis=1) * np.linalg.norm(motion, axis=1), 1e-9)
     score = strength @ w / max(w.sum(), 1e-9)
     best = int(np.argmax(score))
-    if strength[best].min() < min_strength:
+    # Every side must show its edge, except one along the epipolar lines (w < 0.5: within
+    # 30° of them), which places no height: the cover of the desk's brightness shows no
+    # step at its far side, in this image as in the other.
+    weak = strength[best] < min_strength
+    if weak.sum() > 1 or (weak.any() and w[weak].max() >= 0.5):
         return None
     refined = refine_quad(grad_to, pred[best])
     if np.linalg.norm(refined - pred[best], axis=1).max() > cfg.max_refine_px:
