@@ -7,8 +7,9 @@
 5. triangulation of the four corners (eq. 3–5) → pose (eq. 6–7) and cuboid;
 
 and, beyond the paper, where no book is yet: the covers one image found looked for in the
-other, stereo's choice among both images' candidate quads, the covers that stand out of the
-desk in a stereo height map; then each cover's sides moved to its edges (docs/stereo.md).
+other, stereo's choice among both images' candidate quads (three-sided ones included: a
+cover whose fourth side shows no edge), the covers that stand out of the desk in a stereo
+height map; then each cover's sides moved to its edges (docs/stereo.md).
 
 A :class:`Detector` keeps what is set up once per rig (undistortion maps) and, in a
 sequence, the controllers' previous optimum (warm start).

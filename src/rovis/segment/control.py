@@ -5,7 +5,8 @@ quality y (eq. 2). Inner loop: the Hough threshold T_HG for each T_H, solved exa
 :func:`rovis.segment.boundary.evaluate`. In a sequence the search starts from the previous
 frame's optimum and only climbs locally, falling back to the full search when the scene has
 changed so much that the local optimum is empty. Beyond the paper, the covers other
-evaluated T_H found where the optimum found none are kept too (:func:`with_other_covers`).
+evaluated T_H found where the optimum found none are kept too (:func:`with_other_covers`),
+and so are the clearest covers with one side unseen (:func:`with_three_sided_covers`).
 """
 
 from __future__ import annotations
