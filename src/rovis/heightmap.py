@@ -141,16 +141,24 @@ def height_map(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Array
         return (plane_homography(Q_R, origin, e1, e2)
                 @ np.linalg.inv(plane_homography(Q_L, origin, e1, e2)) @ shift)
 
+    # the same arithmetic as ncc = (mean(l·r) − m_l·m_r) / sqrt(max(v_l·v_r, 1e-6)), in
+    # place: a fresh array per step and height was half the sweep's time
+    tmp = np.empty_like(crop)
     for k, h in enumerate(heights):
         H = crop_to_right(float(h))
         warped = cv2.warpPerspective(right, H, crop.shape[::-1],
                                      flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
         m_r = mean(warped)
-        v_r = mean(warped * warped) - m_r * m_r
-        ncc = (mean(crop * warped) - m_l * m_r) / np.sqrt(np.maximum(v_l * v_r, 1e-6))
-        better = ncc > best
-        best[better] = ncc[better]
-        arg[better] = k
+        v_r = mean(np.multiply(warped, warped, out=tmp))
+        v_r -= np.multiply(m_r, m_r, out=tmp)
+        num = mean(np.multiply(crop, warped, out=tmp))
+        num -= np.multiply(m_l, m_r, out=tmp)
+        np.multiply(v_l, v_r, out=tmp)
+        np.maximum(tmp, 1e-6, out=tmp)
+        np.sqrt(tmp, out=tmp)
+        ncc = np.divide(num, tmp, out=num)
+        np.copyto(arg, k, where=ncc > best)
+        np.fmax(best, ncc, out=best)  # a NaN (none expected) leaves best as it was
     # the epipolar direction at the box's centre: where the heights move a pixel
     centre = np.array([0.5 * (x1 - x0), 0.5 * (y1 - y0), 1.0])
     p0, p1 = crop_to_right(float(heights[0])) @ centre, crop_to_right(float(heights[-1])) @ centre
