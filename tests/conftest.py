@@ -25,3 +25,16 @@ def bumblebee_dir() -> Path:
     if not (SHARED_DATA / "chess" / "stereo.yaml").exists():
         pytest.skip(f"real Bumblebee2 data not found at {SHARED_DATA}")
     return SHARED_DATA
+
+
+def ideal_images(rig: StereoRig, rendering) -> dict[str, np.ndarray]:  # type: ignore[no-untyped-def]
+    """Both raw images of a synthetic rendering, undistorted (ideal pixels, as the
+    pipeline segments them)."""
+    import cv2
+
+    out = {}
+    for cam, raw in (("left", rendering.left), ("right", rendering.right)):
+        K, D = rig.intrinsics(cam)
+        maps = cv2.initUndistortRectifyMap(K, D, None, K, rig.image_size, cv2.CV_16SC2)
+        out[cam] = cv2.remap(raw, *maps, cv2.INTER_LINEAR)
+    return out

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import cv2
 import numpy as np
 import pytest
 
@@ -20,6 +19,8 @@ from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
 
+from conftest import ideal_images
+
 THICKNESS = 0.03
 
 
@@ -32,12 +33,8 @@ def book():
              cover=CoverSpec(kind="plain", albedo=0.12, seed=4))
     sc = replace(sc, books=(b,), papers=(), mugs=(), pens=(), cables=())
     r = render(sc, 3)
-    ideal, grads = {}, {}
-    for cam, raw in (("left", r.left), ("right", r.right)):
-        K, D = sc.rig.intrinsics(cam)
-        maps = cv2.initUndistortRectifyMap(K, D, None, K, sc.rig.image_size, cv2.CV_16SC2)
-        ideal[cam] = cv2.remap(raw, *maps, cv2.INTER_LINEAR)
-        grads[cam] = gradients(ideal[cam])
+    ideal = ideal_images(sc.rig, r)
+    grads = {cam: gradients(img) for cam, img in ideal.items()}
     P = np.array(r.truth["books"][0]["corners"])
     return P, ideal, grads, np.asarray(r.truth["desk_plane"]), sc.rig, (r.left, r.right)
 

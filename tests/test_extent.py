@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import cv2
 import numpy as np
 import pytest
 
@@ -17,6 +16,8 @@ from rovis.segment.edges import CANNY_LOW_RATIO
 from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book, Light
 from rovis.synth.textures import CoverSpec
+
+from conftest import ideal_images
 
 THICKNESS = 0.02
 
@@ -33,11 +34,7 @@ def _rendered(books, light=None):
     if light is not None:
         sc = replace(sc, light=light)
     r = render(sc, 3)
-    grads = {}
-    for cam, raw in (("left", r.left), ("right", r.right)):
-        K, D = sc.rig.intrinsics(cam)
-        maps = cv2.initUndistortRectifyMap(K, D, None, K, sc.rig.image_size, cv2.CV_16SC2)
-        grads[cam] = gradients(cv2.remap(raw, *maps, cv2.INTER_LINEAR))
+    grads = {cam: gradients(img) for cam, img in ideal_images(sc.rig, r).items()}
     return r, grads, {"left": sc.rig.Q_L, "right": sc.rig.Q_R}, sc.rig
 
 

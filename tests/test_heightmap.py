@@ -17,6 +17,8 @@ from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
 
+from conftest import ideal_images
+
 HEIGHT = 0.025  # metres
 
 
@@ -29,11 +31,7 @@ def photo_book():
              cover=CoverSpec(kind="photo", albedo=0.4, seed=2))
     sc = replace(sc, books=(b,), papers=(), mugs=(), pens=(), cables=())
     r = render(sc, 11)
-    tex = {}
-    for cam, raw in (("left", r.left), ("right", r.right)):
-        K, D = sc.rig.intrinsics(cam)
-        maps = cv2.initUndistortRectifyMap(K, D, None, K, sc.rig.image_size, cv2.CV_16SC2)
-        tex[cam] = high_pass(cv2.remap(raw, *maps, cv2.INTER_LINEAR), 1.5)
+    tex = {cam: high_pass(img, 1.5) for cam, img in ideal_images(sc.rig, r).items()}
     return sc, r, tex
 
 

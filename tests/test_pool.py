@@ -20,6 +20,8 @@ from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
 
+from conftest import ideal_images
+
 DESK = np.array([0.0, 0.0, 1.0, 0.0])  # z = 0, normal up
 
 
@@ -59,11 +61,7 @@ def book():
              cover=CoverSpec(kind="plain", albedo=0.15, seed=2))
     sc = replace(sc, books=(b,), papers=(), mugs=(), pens=(), cables=())
     r = render(sc, 5)
-    grads = {}
-    for cam, raw in (("left", r.left), ("right", r.right)):
-        K, D = sc.rig.intrinsics(cam)
-        maps = cv2.initUndistortRectifyMap(K, D, None, K, sc.rig.image_size, cv2.CV_16SC2)
-        grads[cam] = gradients(cv2.remap(raw, *maps, cv2.INTER_LINEAR))
+    grads = {cam: gradients(img) for cam, img in ideal_images(sc.rig, r).items()}
     return np.array(r.truth["books"][0]["corners"]), grads, sc.rig
 
 
