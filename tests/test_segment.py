@@ -276,8 +276,9 @@ def _rendered_gradients(seed):
 
 def test_a_warm_started_search_keeps_the_covers_of_other_thresholds():
     # a rendered desk where a cover shows only away from the image's optimum T_H, and not
-    # at the T_H a local climb from that optimum tries
-    grad = _rendered_gradients(106)
+    # at the T_H a local climb from that optimum tries (scene 106 was one until the Hough
+    # lines were refit to their edges: its climb now finds a higher optimum)
+    grad = _rendered_gradients(111)
     ctl = CascadeController(SegmentConfig())
     cold = ctl.segment(grad)
     assert ctl.last_extra_T_H
@@ -354,3 +355,83 @@ def test_refining_both_ways_at_once_gives_each_way_s_corners():
         inward, plain = refine_quad_both(grad, quad)
         np.testing.assert_array_equal(inward, refine_quad(grad, quad))
         np.testing.assert_array_equal(plain, refine_quad(grad, quad, down=(0.0, 0.0)))
+
+
+def _edge_image(theta_deg: float, rho: float, shape=(600, 800), s: int = 4) -> np.ndarray:
+    """Bright where x cos θ + y sin θ > ρ (pixel centres at integers), 4x supersampled."""
+    h, w = shape
+    y, x = np.mgrid[0:h * s, 0:w * s]
+    x, y = (x - (s - 1) / 2) / s, (y - (s - 1) / 2) / s
+    th = np.radians(theta_deg)
+    img = np.where(x * np.cos(th) + y * np.sin(th) > rho, 190.0, 70.0).astype(np.float32)
+    return cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA).astype(np.uint8)
+
+
+def test_refined_lines_sit_on_a_long_edge_hough_cells_miss():
+    from rovis.segment.edges import canny
+    from rovis.segment.lines import hough_lines, refine_lines, support_profile
+    # an edge half way between two 1° cells (the gated passes' cells start at k·22.5°),
+    # through the image centre (~700 px in view)
+    theta = 31.0
+    rho = 400.0 * np.cos(np.radians(theta)) + 300.0 * np.sin(np.radians(theta))
+    img = _edge_image(theta, rho)
+    grad = gradients(img)
+    edges = canny(grad, 60.0)
+    lines = hough_lines(edges, 30, grad=grad, max_lines=5)
+    n = np.array([np.cos(np.radians(theta)), np.sin(np.radians(theta))])
+    d = np.array([-n[1], n[0]])
+    centre = np.array([400.0, 300.0])
+    foot = centre + (rho - centre @ n) * n
+    ends = foot + np.array([-300.0, 300.0])[:, None] * d  # two points on the edge, in view
+    assert np.all((ends >= 0) & (ends < [800, 600]))
+
+    def off(ls):  # distance of the strongest line to the edge at both ends, px
+        return np.abs(ends @ ls.normals[0] - ls.rho[0])
+
+    assert off(lines).max() > 1.0  # a 0.5° cell error: up to 2.6 px at 300 px
+    refined, profile = refine_lines(lines, edges, support_profile(lines, edges, grad), grad)
+    assert off(refined).max() < 0.5, off(refined)
+    assert refined.votes[0] == lines.votes[0]  # T_HG still cuts on Hough's votes
+    # the profile returned is the refined lines' own (the moved lines sampled again)
+    again = support_profile(refined, edges, grad)
+    np.testing.assert_array_equal(profile.cum, again.cum)
+    np.testing.assert_allclose(profile.t0, again.t0)
+    assert profile.cum[0, -1] > support_profile(lines, edges, grad).cum[0, -1]  # more hits
+
+
+def test_short_lines_and_scattered_hits_are_left_as_hough_gave_them():
+    from rovis.segment.lines import Lines, refine_lines, support_profile
+    centre, th = np.array([400.0, 300.0]), np.radians(31.0)
+    d = np.array([-np.sin(th), np.cos(th)])
+    # the line Hough would give: 0.4° off the edge, crossing it at its middle
+    tilted = th + np.radians(0.4)
+    line = Lines(np.array([centre @ [np.cos(tilted), np.sin(tilted)]]), np.array([tilted]),
+                 np.array([100]))
+    for length, moves in ((110.0, False), (500.0, True)):
+        edges = np.zeros((600, 800), np.uint8)
+        a, b = centre - 0.5 * length * d, centre + 0.5 * length * d
+        cv2.line(edges, tuple(np.rint(a).astype(int)), tuple(np.rint(b).astype(int)), 255, 1)
+        out, _ = refine_lines(line, edges, support_profile(line, edges))
+        # a short edge is within a pixel of the line wherever it is: nothing to correct
+        assert (out.theta[0] != line.theta[0]) == moves, length
+        if moves:
+            assert abs(out.theta[0] - th) < np.radians(0.2)  # from 0.4° (a 1 px digital line)
+    # random edge pixels near a line: no straight edge to fit
+    rng = np.random.default_rng(0)
+    noise = (rng.random((600, 800)) < 0.3).astype(np.uint8) * 255
+    line = Lines(np.array([300.0]), np.array([np.radians(40.0)]), np.array([100]))
+    again, _ = refine_lines(line, noise, support_profile(line, noise))
+    assert again.rho[0] == 300.0 and again.theta[0] == line.theta[0]
+
+
+def test_the_cover_edge_offset_is_measured_from_the_side():
+    from rovis.segment.boundary import cover_edge_offset
+    # desk 110 | page block 235, 4 px | cover 200: the side's line lies 2 px outside the
+    # block's outer edge; the cover edge is 6 px inside the line
+    img = np.full((300, 400), 110, np.uint8)
+    img[100:, :] = 235
+    img[104:, :] = 200
+    grad = gradients(img)
+    a, b = np.array([50.0, 97.5]), np.array([350.0, 97.5])  # 2 px above the outer edge (99.5)
+    shift = cover_edge_offset(grad, a, b, np.array([0.0, 1.0]), max_px=25.0)
+    assert shift == pytest.approx(6.0, abs=1.0)

@@ -17,8 +17,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rovis.segment.edges import Gradients, canny
-from rovis.segment.lines import (Lines, SupportProfile, hough_lines, intersect, refine_segment,
-                                 support_profile)
+from rovis.segment.lines import (Lines, SupportProfile, hough_lines, intersect, refine_lines,
+                                 refine_segment, support_profile)
 from rovis.segment.quads import (CoverSelection, QuadConfig, Quads, _canonical, _distinct,
                                  candidate_quads, order_corners, three_sided_quads)
 from rovis.segment.quality import PRINTED, quality
@@ -74,6 +74,10 @@ class SegmentConfig:
         many Hough lines at its optimum's T_H, with this edge support per side
         (``quads.min_support`` for the covers), for the pool only (eq. 2 and the covers
         still use ``n_max``; measured in docs/stereo.md, "The height map").
+    refine_lines : bool
+        Beyond the paper: each Hough line fitted to its edge pixels before quads are formed
+        (:func:`rovis.segment.lines.refine_lines`; Hough's 1° cells leave a long side's
+        line a pixel or more off its edge at one end).
     three_sided, three_sided_evaluations : bool, int
         Beyond the paper: at the T_H whose covers were kept and at the
         ``three_sided_evaluations`` of highest y (at every evaluated T_H where none gave a
@@ -103,6 +107,7 @@ class SegmentConfig:
     refine_gamma: float = 1.0
     pool_lines: int = 100
     pool_min_support: float = 0.7
+    refine_lines: bool = True
     three_sided: bool = True
     three_sided_evaluations: int = 3
     three_sided_support: float = 0.95
@@ -230,6 +235,8 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
     if len(lines) == 0:
         return Evaluation(T_H, low, 0.0, lines, Quads.empty(), 1)
     profile = support_profile(lines, edges, grad, box=grad.box)
+    if cfg.refine_lines:  # Hough's 1° cells, undone: a long side's corners keep their arms
+        lines, profile = refine_lines(lines, edges, profile, grad, box=grad.box)
     quads = candidate_quads(lines, profile, grad.shape, area, cfg.quads)
     selection = CoverSelection(quads, cfg.quads)
     if T_HG is not None:
@@ -429,5 +436,6 @@ def cover_edge_offset(grad: Gradients, a: NDArray[np.float64], b: NDArray[np.flo
         valley = profile[outer:k].min()
         level = valley + 0.5 * (profile[k] - valley)  # half way up the inner peak
         if np.mean(g[:, k - 1:k + 2].max(axis=1) >= level) >= min_consistency:
-            return float(offsets[k] - offsets[outer])
+            # from the side (not from the outer edge, which may lie up to 3 px off it)
+            return float(offsets[k])
     return 0.0
