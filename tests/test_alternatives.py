@@ -118,7 +118,8 @@ def test_detect_retries_a_tilted_pair_and_finds_the_book_only_with_alternatives(
         return segs[calls[-1]]
 
     monkeypatch.setattr(pipeline, "segment", fake_segment)
-    off = ["stereo.transfer=false", "extent.grow=false", "extent.shrink=false"]
+    # full_view off: the stub's quads are in the rig's own ideal pixels
+    off = ["stereo.transfer=false", "extent.grow=false", "extent.shrink=false", "full_view=false"]
     on = Detector(rig, with_settings(DetectConfig(), off)).detect(raw_left, raw_right)
     without = Detector(rig, with_settings(DetectConfig(), off + ["stereo.alternatives=false"])
                        ).detect(raw_left, raw_right)
@@ -157,7 +158,7 @@ def test_a_quad_seen_in_one_image_only_is_looked_for_through_its_alternatives(bo
         return segs[calls[-1]]
 
     monkeypatch.setattr(pipeline, "segment", fake_segment)
-    off = ["extent.grow=false", "extent.shrink=false"]
+    off = ["extent.grow=false", "extent.shrink=false", "full_view=false"]  # the stub's pixels
     on = Detector(rig, with_settings(DetectConfig(), off)).detect(raw_left, raw_right)
     without = Detector(rig, with_settings(DetectConfig(), off + ["stereo.transfer_alternatives=0"])
                        ).detect(raw_left, raw_right)

@@ -140,20 +140,24 @@ def test_a_cover_longer_than_any_book_is_dropped(lone_book, length, kept):
 
 @pytest.mark.parametrize("width, kept", [(0.08, True), (0.03, False)])
 def test_a_cover_narrower_than_any_book_is_dropped(lone_book, width, kept):
-    # e.g. a printed square of a chessboard, a label (no desk plane needed: the real chess
-    # pairs have none)
-    P, Q, _, _, rig = lone_book
+    # e.g. a printed square of a chessboard, a label
+    P, Q, _, desk, rig = lone_book
     sides = [np.linalg.norm(P[(k + 1) % 4] - P[k]) for k in range(4)]
     short = int(np.argmin(sides[:2]))  # side 0 or 1; its neighbour side is moved
     quad = _side_moved(P, short + 1, width - sides[short])
     pair = Pair(geometry.project(Q["left"], quad), geometry.project(Q["right"], quad), 1.0, 0.0)
     det = Detector(rig)
-    pair, book, why = det._reconstruct_or_why(rig, pair, None)
+    # with the desk plane, last (the extent step may grow a piece to the whole cover)
+    pair, book, why = det._reconstruct_or_why(rig, pair, desk)
     assert book is not None, why
     assert min(book.pose.size[:2]) == pytest.approx(width, abs=1e-3)
     found, small = det._without_small([(pair, book)])
     assert len(found) == kept
     assert [why for why, _, _ in small] == ([] if kept else ["too small"])
+    # without it (the real chess pairs have none) no extent step follows: dropped at once,
+    # its quads left free for the one-image search
+    _, book, why = det._reconstruct_or_why(rig, pair, None)
+    assert (book is not None) == kept and why == ("" if kept else "too small")
 
 
 @pytest.fixture(scope="module")

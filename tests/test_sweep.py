@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-import cv2
 import numpy as np
 import pytest
 
@@ -15,14 +14,14 @@ from rovis.sweep import (SweepConfig, contradicts, find_by_print, high_pass, on_
                          texture_height)
 from rovis.synth import render, sample_scene
 
+from conftest import ideal_images
+
 
 @pytest.fixture(scope="module")
 def scene():
     sc = sample_scene(11, lux=500.0)
     r = render(sc, 11)  # seeded sensor noise: the same pair every run
-    det = Detector(sc.rig)
-    ideal = {cam: cv2.remap(img, *det._maps[cam], cv2.INTER_LINEAR)
-             for cam, img in (("left", r.left), ("right", r.right))}
+    ideal = ideal_images(sc.rig, r)
     texture = {cam: high_pass(img, 1.5) for cam, img in ideal.items()}  # as detect() makes it
     return sc, r, ideal, texture
 

@@ -36,11 +36,12 @@ from rovis.segment import CascadeController, SegmentConfig, Segmentation, gradie
 from rovis.segment.edges import CANNY_LOW_RATIO, Gradients
 from rovis.segment.methods import METHODS, segment
 from rovis.segment.boundary import refine_quad, refine_quad_both
-from rovis.segment.quads import Quads, order_corners, quad_overlap
+from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
 from rovis.stereo import (Match, StereoConfig, find_in_other_view, flat_rectangle, match_quads,
                           pool_pairs)
 from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pass, on_plane,
                          sweep_heights, texture_height)
+from rovis.undistort import IdealView
 
 
 # Why a stereo pair of quads makes no book (:meth:`Detector._reconstruct_or_why`): its
@@ -49,9 +50,11 @@ from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pa
 # is tilted against the desk; it stands below the desk (or, found in one image only or
 # among the alternatives, lower than any book) or more than StereoConfig.max_height above
 # it; a side lies on the desk; its print matches between the images at another height
-# than its corners (rovis.sweep).
+# than its corners (rovis.sweep); without the desk plane, a cover found in one image only
+# whose corners make no rectangle in 3D, or a rectangle inside a larger cover, in its plane
+# (a print on it).
 DROP_REASONS = ("degenerate", "too long", "too small", "tilted", "height", "side on desk",
-                "texture height")
+                "texture height", "skewed", "printed")
 # The checks after which a pair is retried with the other quads the closed loop found over
 # it (Segmentation.alternatives): those an outline paired with a cover fails.
 ALTERNATIVE_REASONS = ("tilted", "side on desk", "height", "texture height")
@@ -87,6 +90,10 @@ class DetectConfig:
     min_side_height : float
         Metres. A quad with a side whose midpoint is lower than this above the desk is
         dropped: that side is a line on the desk (a shadow's edge, a page block's foot).
+    full_view : bool
+        Undistort into an ideal frame that holds the raw images' whole field of view
+        (:class:`rovis.undistort.IdealView`): with barrel distortion the raw image's border
+        lies beyond the ideal image of its own size, and a cover near it loses a side.
     fit_rectangle : bool
         Replace the four separately triangulated corners by one 3D rectangle fitted to both
         images' corners (:func:`rovis.geometry.fit_rectangle`; beyond the paper).
@@ -112,6 +119,7 @@ class DetectConfig:
     max_cover_side: float = 0.45
     min_cover_side: float = 0.06
     fit_rectangle: bool = False
+    full_view: bool = True
     segment: SegmentConfig = field(default_factory=SegmentConfig)
     stereo: StereoConfig = field(default_factory=StereoConfig)
     extent: ExtentConfig = field(default_factory=ExtentConfig)
@@ -223,10 +231,8 @@ class Detector:
             raise ValueError("calibration: image size unknown; give image_width/height")
         self.rig = rig
         self.cfg = cfg or DetectConfig()
-        w, h = rig.image_size
         # Raw → ideal maps, computed once: for each ideal pixel, where to read the raw image.
-        self._maps = {cam: cv2.initUndistortRectifyMap(K, D, None, K, (w, h), cv2.CV_16SC2)
-                      for cam, (K, D) in (("left", (rig.K1, rig.D1)), ("right", (rig.K2, rig.D2)))}
+        self._view = IdealView.of(rig, full=self.cfg.full_view)
         self._controllers = {cam: CascadeController(self.cfg.segment) for cam in ("left", "right")}
         # The last ROI per camera: a registered rig's (or a still marker's) is the same
         # every frame, so it is drawn once.
@@ -281,8 +287,11 @@ class Detector:
                 desk_plane = marker.desk_plane_from_marker(T_world_marker)
         lap("marker")
 
-        # 2. undistort
-        ideal = {cam: cv2.remap(gray[cam], *self._maps[cam], cv2.INTER_LINEAR) for cam in gray}
+        # 2. undistort, into a frame that holds the whole raw field of view (IdealView):
+        # from here on pixels are that frame's, and ``rig`` the rig whose Q_L, Q_R give them
+        view = self._view
+        raw_rig, rig = rig, view.rig(rig)
+        ideal = {cam: view.undistort(gray[cam], cam) for cam in gray}
         lap("undistort")
 
         # 3. segmentation per image
@@ -290,8 +299,14 @@ class Detector:
         grads: dict[str, Gradients] = {}
         steps: dict[str, float] = {}  # the segmentation's own steps, both images
         for cam in ("left", "right"):
-            mask = self._roi_mask(rig, cam, T_world_marker)
+            mask = self._roi_mask(raw_rig, cam, T_world_marker)
             grads[cam] = grad = gradients(ideal[cam], mask)
+            if view.grown:
+                # the black beyond the raw image's border is no edge to refine onto, and a
+                # side running there is out of view
+                for g in (grad.dx, grad.dy):
+                    cv2.bitwise_and(g, g, dst=g, mask=view.valid[cam])
+                grads[cam] = grad = replace(grad, seen=view.valid[cam])
             lap("gradients")
             segs[cam] = segment(ideal[cam], grad, self.cfg.method,
                                 controller=self._controllers[cam], cfg=self.cfg.segment,
@@ -326,10 +341,11 @@ class Detector:
                     books[i] = self._alternative(rig, segs, grads, ideal, mt, pair, why,
                                                  desk_plane, texture, others)
         lap("pose")
-        if self.cfg.stereo.transfer and desk_plane is not None:
+        if self.cfg.stereo.transfer:
             # A matched pair that is no flat cover often pairs a cover in one image with its
             # outline in the other: both quads are free again, for each to be looked for in
-            # the other image on its own.
+            # the other image on its own (without the desk plane, on the plane the quad's
+            # rectangle implies: find_in_other_view).
             kept = [(mt, pair) for mt, (pair, book, _) in zip(matches, books) if book is not None]
             more = self._transfer(rig, segs, grads, ideal, kept, desk_plane, texture)
             lap("stereo")
@@ -337,6 +353,11 @@ class Detector:
             books += [self._reconstruct_or_why(rig, pair, desk_plane, texture) for pair in more]
             lap("pose")
         found = [(pair, book) for pair, book, _ in books if book is not None]
+        if desk_plane is None:
+            # no height tells a cover from a rectangle printed on it: the cover is the one
+            # around it, in its plane
+            found, printed = self._without_prints(found)
+            books += [(pair, None, "printed") for pair, _ in printed]
         if self.cfg.stereo.pool and desk_plane is not None:
             # beyond the paper: books among the candidates neither image's selection kept
             # (without the desk plane, nothing tells a book from a flat rectangle of a
@@ -369,7 +390,11 @@ class Detector:
             dropped += small
             warnings.append(f"{len(small)} cover(s) narrower than {self.cfg.min_cover_side * 100:g} "
                             "cm dropped: no book (a printed square, a label)")
-        objects = [replace(book, id=i) for i, (_, book) in enumerate(found)]
+        # back to the rig's ideal pixels, and the raw images' (DESIGN §3)
+        objects = [replace(book, id=i,
+                           corners_left_px=raw_rig.distort_points(view.to_rig_ideal(book.corners_left_px), "left"),
+                           corners_right_px=raw_rig.distort_points(view.to_rig_ideal(book.corners_right_px), "right"))
+                   for i, (_, book) in enumerate(found)]
         return FrameResult(
             objects=objects, desk_plane=None if desk_plane is None else desk_plane.copy(),
             world_frame=rig.world_frame,
@@ -378,8 +403,9 @@ class Detector:
                                                 n_quads=len(segs[cam]))
                           for cam in ("left", "right")},
             timing_ms=timing, warnings=warnings, T_world_left=rig.T_world_left.copy(),
-            lines={cam: segs[cam].lines for cam in segs},
-            covers={cam: segs[cam].corners for cam in segs}, dropped=dropped)
+            lines={cam: segs[cam].lines.shifted(-view.offset) for cam in segs},
+            covers={cam: view.to_rig_ideal(segs[cam].corners) for cam in segs},
+            dropped=[(why, view.to_rig_ideal(a), view.to_rig_ideal(b)) for why, a, b in dropped])
 
     # -- stages ---------------------------------------------------------------------------
 
@@ -414,18 +440,21 @@ class Detector:
 
     def _roi_mask(self, rig: StereoRig, cam: Literal["left", "right"],
                   T_world_marker: NDArray[np.float64] | None) -> NDArray[np.uint8] | None:
+        """The ROI in the ideal image (of :attr:`_view`) of ``rig`` (its raw frame): the
+        workspace, or without the marker the raw image's field of view (None: all of it)."""
         if T_world_marker is None:
-            return None
+            return self._view.valid[cam] if self._view.grown else None
         key = np.asarray(T_world_marker, dtype=np.float64).tobytes() + rig.T_world_left.tobytes()
         if cam not in self._masks or self._masks[cam][0] != key:
-            self._masks[cam] = (key, roi_mask(rig, cam, T_world_marker, x=self.cfg.workspace_x,
-                                              y=self.cfg.workspace_y, height=self.cfg.roi_height,
-                                              margin_px=self.cfg.roi_margin_px))
+            roi = roi_mask(rig, cam, T_world_marker, x=self.cfg.workspace_x,
+                           y=self.cfg.workspace_y, height=self.cfg.roi_height,
+                           margin_px=self.cfg.roi_margin_px, view=self._view)
+            self._masks[cam] = (key, cv2.bitwise_and(roi, self._view.valid[cam]))
         return self._masks[cam][1]
 
     def _transfer(self, rig: StereoRig, segs: dict[str, Segmentation], grads: dict[str, Gradients],
                   ideal: dict[str, NDArray[np.uint8]], kept: list[tuple[Match, Pair]],
-                  desk_plane: NDArray[np.float64],
+                  desk_plane: NDArray[np.float64] | None,
                   texture: dict[str, NDArray[np.float32]] | None = None) -> list[Pair]:
         """Covers found in one image only, looked for in the other (find_in_other_view;
         where that finds nothing, a printed cover by its print, :func:`rovis.sweep.find_by_print`;
@@ -437,8 +466,16 @@ class Detector:
         used = {"left": {mt.left for mt, _ in kept}, "right": {mt.right for mt, _ in kept}}
         taken = {"left": [pair.left for _, pair in kept], "right": [pair.right for _, pair in kept]}
         # Best-supported first: where the two images' segmentations disagree (a union of two
-        # touching covers in one, one of them in the other), the cleaner quad wins.
-        todo = sorted(((float(segs[src].support[k]), src, dst, k)
+        # touching covers in one, one of them in the other), the cleaner quad wins. Without
+        # the desk plane, the largest first: no height tells a cover from the rectangles
+        # printed on it (on the real chessboard pairs, blocks of the board's squares), and
+        # the cover is the one around them.
+        def rank(src: str, k: int) -> float:
+            if desk_plane is None:
+                return float(abs(_shoelace(segs[src].corners[k][None])[0]))
+            return float(segs[src].support[k])
+
+        todo = sorted(((rank(src, k), src, dst, k)
                        for src, dst in (("left", "right"), ("right", "left"))
                        for k in range(len(segs[src])) if k not in used[src]), reverse=True)
         out = []
@@ -460,7 +497,8 @@ class Detector:
                 found = find_in_other_view(source, Q[src], Q[dst], desk_plane, grads[dst],
                                            CANNY_LOW_RATIO * T_H, gray_from=ideal[src],
                                            gray_to=ideal[dst], cfg=self.cfg.stereo)
-                if found is None and texture is not None and self.cfg.sweep.transfer:
+                if found is None and texture is not None and desk_plane is not None \
+                        and self.cfg.sweep.transfer:
                     # no edges to refit there: a printed cover is placed by its print alone
                     placed = find_by_print(texture[src], texture[dst], Q[src], Q[dst], source,
                                            desk_plane, self.cfg.stereo.min_height, self.cfg.sweep)
@@ -744,6 +782,29 @@ class Detector:
                     drop.add(k)
         return [item for k, item in enumerate(out) if k not in drop]
 
+    def _without_prints(self, found: list[tuple[Pair, BookDetection]], *, inside: float = 0.9,
+                        max_off_plane: float = 0.005,
+                        ) -> tuple[list[tuple[Pair, BookDetection]], list[tuple[Pair, BookDetection]]]:
+        """The books not printed on another: a book whose left quad lies ``inside`` a larger
+        book's, its corners within ``max_off_plane`` (metres) of that book's cover plane, is a
+        print on that cover (for frames without the desk plane, where no height tells them
+        apart). Returns the books kept and those dropped."""
+        area = [abs(float(_shoelace(pair.left[None])[0])) for pair, _ in found]
+        kept, printed = [], []
+        for i, (pair, book) in enumerate(found):
+            on = False
+            for j, (outer, other) in enumerate(found):
+                if j == i or area[j] <= area[i] or quad_overlap(pair.left, outer.left) < inside:
+                    continue
+                P = other.corners_world
+                normal = np.cross(P[2] - P[0], P[3] - P[1])
+                normal /= max(float(np.linalg.norm(normal)), 1e-12)
+                if np.abs((book.corners_world - P.mean(axis=0)) @ normal).max() <= max_off_plane:
+                    on = True
+                    break
+            (printed if on else kept).append((pair, book))
+        return kept, printed
+
     def _without_small(self, found: list[tuple[Pair, BookDetection]],
                        ) -> tuple[list[tuple[Pair, BookDetection]],
                                   list[tuple[str, NDArray[np.float64], NDArray[np.float64]]]]:
@@ -763,6 +824,16 @@ class Detector:
         if max(pose.size[0], pose.size[1]) > self.cfg.max_cover_side:
             return "too long"  # two books end to end, or a cover and a line beyond it
         if desk_plane is None:
+            # no extent step follows without the desk plane (it may grow a piece of a cover
+            # to the whole cover): a piece is dropped now, and its quads stay free for the
+            # one-image search (on the real chessboard pairs, strips of the board's squares
+            # matched in both images kept the sheet from being looked for)
+            if min(pose.size[0], pose.size[1]) < self.cfg.min_cover_side:
+                return "too small"
+            # found in one image, placed in the other on its rectangle's own plane: its
+            # corners must make a rectangle (the quad's image was taken for one)
+            if pair.transferred and not flat_rectangle(P, side_range=(0.0, np.inf))[0]:
+                return "skewed"
             return ""
         if _tilt_deg(pose, desk_plane) > self.cfg.max_tilt_deg:
             return "tilted"
@@ -852,8 +923,7 @@ class Detector:
             np.linalg.norm(geometry.project(rig.Q_R, P) - c_right, axis=1)])
         return pair, BookDetection(
             id=0, pose=pose, corners_world=P,
-            corners_left_px=rig.distort_points(c_left, "left"),
-            corners_right_px=rig.distort_points(c_right, "right"),
+            corners_left_px=c_left, corners_right_px=c_right,  # ideal: made raw in detect
             reprojection_error_px=float(reproj.mean()),
             quality=pair.quality, stereo_error_px=pair.error_px,
             source="one image" if pair.transferred else pair.source), ""
@@ -888,8 +958,10 @@ def _tilt_deg(pose: geometry.BookPose, desk_plane: NDArray[np.float64] | None) -
 
 def roi_mask(rig: StereoRig, camera: Literal["left", "right"], T_world_marker: NDArray[np.float64], *,
              x: tuple[float, float] = marker.WORKSPACE_X, y: tuple[float, float] = marker.WORKSPACE_Y,
-             height: float = 0.10, margin_px: int = 8) -> NDArray[np.uint8]:
-    """The workspace as a volume — desk to ``height`` above it — seen in the ideal image.
+             height: float = 0.10, margin_px: int = 8,
+             view: IdealView | None = None) -> NDArray[np.uint8]:
+    """The workspace as a volume — desk to ``height`` above it — seen in the ideal image
+    (the rig's, or ``view``'s).
 
     A cover lies above the desk: near the workspace's edge it is seen outside the desk-level
     rectangle. In ideal (undistorted) pixels the image of the prism is the convex hull of
@@ -904,8 +976,9 @@ def roi_mask(rig: StereoRig, camera: Literal["left", "right"], T_world_marker: N
         lifted = T_world_marker @ geometry.make_transform(np.eye(3), [0.0, 0.0, z])
         raw = marker.workspace_polygon(rig, camera, T_world_marker=lifted, x=x, y=y)
         if len(raw) >= 3:
-            pts.append(rig.undistort_points(raw, camera))
-    w, h = rig.image_size  # type: ignore[misc]
+            ideal = rig.undistort_points(raw, camera)
+            pts.append(ideal if view is None else view.from_rig_ideal(ideal))
+    w, h = rig.image_size if view is None else view.size  # type: ignore[misc]
     mask = np.zeros((h, w), np.uint8)
     if pts:
         hull = cv2.convexHull(np.vstack(pts).astype(np.float32))

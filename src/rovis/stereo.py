@@ -269,7 +269,7 @@ def flat_rectangle(P: ArrayLike, desk_plane: ArrayLike | None = None, *,
 
 
 def find_in_other_view(corners: ArrayLike, Q_from: ArrayLike, Q_to: ArrayLike,
-                       desk_plane: ArrayLike, grad_to: Gradients, min_strength: float, *,
+                       desk_plane: ArrayLike | None, grad_to: Gradients, min_strength: float, *,
                        gray_from: NDArray[np.uint8] | None = None,
                        gray_to: NDArray[np.uint8] | None = None,
                        cfg: StereoConfig = StereoConfig()) -> tuple[NDArray[np.float64], float] | None:
@@ -285,14 +285,19 @@ def find_in_other_view(corners: ArrayLike, Q_from: ArrayLike, Q_to: ArrayLike,
     covers the segmentation found in one image only: their edges are often there in the
     other image too, just below what its Hough stage kept.
 
+    Without the desk plane, the cover's own plane is taken from the quad
+    (:func:`rectangle_normal`: a rectangle's image fixes its plane's orientation) and swept
+    in depth instead, from ``cfg.min_depth`` to ``cfg.max_depth`` along the quad's centre
+    ray, in steps of at most half a pixel of motion in the other image.
+
     Parameters
     ----------
     corners : array_like, shape (4, 2)
         Ideal pixel corners in the image where the cover was found.
     Q_from, Q_to : array_like, shape (3, 4)
         World → ideal pixel projections of that image and of the other.
-    desk_plane : array_like, shape (4,)
-        ``[nx, ny, nz, d]`` in the world frame, normal up.
+    desk_plane : array_like, shape (4,), or None
+        ``[nx, ny, nz, d]`` in the world frame, normal up; None: unknown.
     grad_to : Gradients
         The other image's gradients.
     min_strength : float
@@ -303,19 +308,18 @@ def find_in_other_view(corners: ArrayLike, Q_from: ArrayLike, Q_to: ArrayLike,
 
     Returns
     -------
-    (corners_to, height) : ndarray, shape (4, 2), and float (metres), or None
-        Corners in the other image, in the same physical order as ``corners``.
+    (corners_to, value) : ndarray, shape (4, 2), and float, or None
+        Corners in the other image, in the same physical order as ``corners``; the height
+        above the desk (metres), or without the desk plane the distance along the centre
+        ray (metres).
     """
     c = np.asarray(corners, dtype=np.float64).reshape(4, 2)
     Q_from, Q_to = np.asarray(Q_from, dtype=np.float64), np.asarray(Q_to, dtype=np.float64)
-    plane = np.asarray(desk_plane, dtype=np.float64)
-    C, rays = _rays(Q_from, c)
-    heights = np.arange(cfg.min_height, cfg.max_cover_height + 1e-9, cfg.height_step)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = -(plane[:3] @ C + plane[3] - heights[:, None]) / (rays @ plane[:3])[None, :]  # (H, 4)
-    if not np.all(np.isfinite(s) & (s > 0)):
+    swept = (_over_heights(c, Q_from, Q_to, np.asarray(desk_plane, dtype=np.float64), cfg)
+             if desk_plane is not None else _over_depths(c, Q_from, Q_to, cfg))
+    if swept is None:
         return None
-    pred = geometry.project(Q_to, C + s[..., None] * rays[None]).reshape(len(heights), 4, 2)
+    pred, values = swept
     strength = _side_strength(grad_to, pred)  # (H, 4)
     # A side along the epipolar lines slides onto itself at every height: only sides across
     # them place the cover. Weight each side by the sine of its angle to the corners' motion.
@@ -338,7 +342,85 @@ def find_in_other_view(corners: ArrayLike, Q_from: ArrayLike, Q_to: ArrayLike,
     if gray_from is not None and gray_to is not None and \
             _cover_ncc(gray_from, c, gray_to, refined) < cfg.min_ncc:
         return None
-    return refined, float(heights[best])
+    return refined, float(values[best])
+
+
+def _over_heights(c: NDArray[np.float64], Q_from: NDArray[np.float64], Q_to: NDArray[np.float64],
+                  plane: NDArray[np.float64], cfg: StereoConfig,
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """The quad ``c`` laid parallel to the desk at each height of the sweep: its corners
+    in the other image (H, 4, 2), and the heights (H,)."""
+    C, rays = _rays(Q_from, c)
+    heights = np.arange(cfg.min_height, cfg.max_cover_height + 1e-9, cfg.height_step)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = -(plane[:3] @ C + plane[3] - heights[:, None]) / (rays @ plane[:3])[None, :]  # (H, 4)
+    if not np.all(np.isfinite(s) & (s > 0)):
+        return None
+    return geometry.project(Q_to, C + s[..., None] * rays[None]).reshape(len(heights), 4, 2), heights
+
+
+def _over_depths(c: NDArray[np.float64], Q_from: NDArray[np.float64], Q_to: NDArray[np.float64],
+                 cfg: StereoConfig, max_steps: int = 4000,
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """The quad ``c`` laid on the plane its rectangle implies (:func:`rectangle_normal`),
+    at each depth of the sweep (the distance along the centre ray, from ``cfg.min_depth``
+    to ``cfg.max_depth``, uniform in inverse depth): corners in the other image (H, 4, 2),
+    and the depths (H,)."""
+    normal = rectangle_normal(c, Q_from)
+    if normal is None:
+        return None
+    C, rays = _rays(Q_from, c)
+    centre = rays.mean(axis=0)
+    centre /= np.linalg.norm(centre)
+    along = rays @ normal  # each corner ray's and the centre ray's speed toward the plane
+    if np.any(np.sign(along) != np.sign(centre @ normal)) or np.any(np.abs(along) < 1e-6):
+        return None  # a plane seen edge-on
+    ratio = (centre @ normal) / along  # corner distance = ratio · centre distance
+
+    def at(depth: NDArray[np.float64]) -> NDArray[np.float64]:
+        X = C + (depth[:, None, None] * ratio[None, :, None]) * rays[None]
+        return geometry.project(Q_to, X.reshape(-1, 3)).reshape(len(depth), 4, 2)
+
+    ends = at(np.array([cfg.min_depth, cfg.max_depth]))
+    travel = float(np.linalg.norm(ends[1] - ends[0], axis=1).max())
+    steps = int(np.clip(np.ceil(travel / 0.5), 2, max_steps))
+    depth = 1.0 / np.linspace(1.0 / cfg.min_depth, 1.0 / cfg.max_depth, steps)
+    return at(depth), depth
+
+
+def rectangle_normal(corners: ArrayLike, Q: ArrayLike,
+                     max_skew_deg: float = 12.0) -> NDArray[np.float64] | None:
+    """The world unit normal (3,) of the plane of a rectangle whose image is ``corners``.
+
+    Opposite sides of a rectangle are parallel in 3D: each pair meets at a vanishing point
+    ``v`` (at infinity for sides parallel in the image too), the image of the direction
+    ``M⁻¹ v`` (M = Q[:, :3]). The two directions span the plane; they must be within
+    ``max_skew_deg`` of perpendicular, or the quad is no rectangle's image (None). The
+    normal points away from the camera.
+
+    Parameters
+    ----------
+    corners : array_like, shape (4, 2)
+        Ideal pixels, in cyclic order.
+    Q : array_like, shape (3, 4)
+        World → ideal pixel projection of that image.
+    """
+    p = np.column_stack([np.asarray(corners, dtype=np.float64).reshape(4, 2), np.ones(4)])
+    side = [np.cross(p[s], p[(s + 1) % 4]) for s in range(4)]  # homogeneous lines
+    M = np.asarray(Q, dtype=np.float64)[:, :3]
+    dirs = []
+    for a, b in ((0, 2), (1, 3)):
+        v = np.cross(side[a], side[b])
+        if not np.linalg.norm(v) > 0:
+            return None
+        D = np.linalg.solve(M, v / np.linalg.norm(v))
+        dirs.append(D / np.linalg.norm(D))
+    if abs(dirs[0] @ dirs[1]) > np.sin(np.radians(max_skew_deg)):
+        return None
+    n = np.cross(dirs[0], dirs[1])
+    n /= np.linalg.norm(n)
+    ray = np.linalg.solve(M, p.mean(axis=0))  # toward the quad's centre (as _rays gives)
+    return n if n @ ray > 0 else -n
 
 
 def _side_strength(grad: Gradients, quads: NDArray[np.float64], samples: int = 24) -> NDArray[np.float64]:

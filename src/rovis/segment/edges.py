@@ -23,12 +23,17 @@ class Gradients:
         Region of interest (non-zero inside); edges outside it are dropped.
     box : (x0, y0, x1, y1)
         The ROI's bounding box (the whole image without a mask); Hough runs on this crop.
+    seen : ndarray, shape (H, W), uint8 or None
+        Where the image shows the scene (non-zero), if not everywhere: an ideal image grown
+        to the raw field of view (:class:`rovis.undistort.IdealView`) is black beyond it, and
+        a side running there is out of view, as beyond the image's edge (None: all of it).
     """
 
     dx: NDArray[np.int16]
     dy: NDArray[np.int16]
     mask: NDArray[np.uint8] | None
     box: tuple[int, int, int, int]
+    seen: NDArray[np.uint8] | None = None
 
     @property
     def shape(self) -> tuple[int, int]:

@@ -1,0 +1,78 @@
+"""The ideal frame that holds the raw field of view (rovis.undistort.IdealView)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rovis import geometry
+from rovis.calib import make_rig
+from rovis.undistort import IdealView
+
+# the real Bumblebee2's lens (../shared/data/bumblebee2/chess/stereo.yaml), on a 640x480 rig
+WIDE = dict(image_size=(640, 480), f_px=400.0, distortion=(-0.36, 0.17, 0.0, 0.0, 0.0))
+
+
+def _border(w: int, h: int, n: int = 50) -> np.ndarray:
+    t = np.linspace(0.0, 1.0, n)
+    return np.vstack([np.column_stack([t * (w - 1), np.zeros(n)]),
+                      np.column_stack([t * (w - 1), np.full(n, h - 1.0)]),
+                      np.column_stack([np.zeros(n), t * (h - 1)]),
+                      np.column_stack([np.full(n, w - 1.0), t * (h - 1)])])
+
+
+def test_every_raw_pixel_lies_in_the_grown_frame():
+    rig = make_rig(**WIDE)
+    view = IdealView.of(rig)
+    w, h = view.size
+    assert view.grown and w > 640 + 100 and h > 480 + 80  # ~70 px lost per side before
+    for cam in ("left", "right"):
+        ideal = view.from_rig_ideal(rig.undistort_points(_border(640, 480), cam))
+        assert ideal.min() >= 0 and ideal[:, 0].max() <= w - 1 and ideal[:, 1].max() <= h - 1
+        # the frame of the rig's own size would have cut them off
+        assert rig.undistort_points(_border(640, 480), cam).min() < -50
+
+
+def test_valid_marks_the_pixels_the_raw_image_gives():
+    rig = make_rig(**WIDE)
+    view = IdealView.of(rig, margin_px=0)
+    valid = view.valid["left"] > 0
+    # the ideal image of the principal point, and of a raw pixel near a corner, are valid
+    c = np.rint(view.from_rig_ideal(rig.K1[:2, 2])).astype(int)
+    corner = np.rint(view.from_rig_ideal(rig.undistort_points([[5.0, 5.0]], "left")[0])).astype(int)
+    assert valid[c[1], c[0]] and valid[corner[1], corner[0]]
+    assert not valid[0, 0] and not valid[-1, -1]  # the grown frame's corners see past the lens
+    raw = np.full((480, 640), 200, np.uint8)
+    img = view.undistort(raw, "left")
+    assert img.shape == (view.size[1], view.size[0])
+    assert np.all(img[valid][:1000] == 200) and img[0, 0] == 0
+
+
+def test_the_view_rig_projects_into_the_grown_frame():
+    rig = make_rig(**WIDE)
+    view = IdealView.of(rig)
+    work = view.rig(rig)
+    P = np.array([[0.05, -0.03, 0.6], [-0.2, 0.1, 0.5]])
+    for Q_rig, Q_view in ((rig.Q_L, work.Q_L), (rig.Q_R, work.Q_R)):
+        np.testing.assert_allclose(geometry.project(Q_view, P),
+                                   view.from_rig_ideal(geometry.project(Q_rig, P)), atol=1e-9)
+    # triangulation is the same in either frame
+    pl, pr = geometry.project(work.Q_L, P), geometry.project(work.Q_R, P)
+    np.testing.assert_allclose(work.triangulate(pl, pr, distorted=False), P, atol=1e-9)
+    np.testing.assert_allclose(view.to_rig_ideal(view.from_rig_ideal(pl)), pl)
+
+
+def test_without_full_view_or_barrel_distortion_the_frame_is_the_rigs():
+    rig = make_rig(**WIDE)
+    plain = IdealView.of(rig, full=False)
+    assert plain.size == (640, 480) and not np.any(plain.offset) and plain.rig(rig) is rig
+    pincushion = make_rig(image_size=(640, 480), f_px=400.0, distortion=(0.05, 0, 0, 0, 0))
+    view = IdealView.of(pincushion)
+    assert view.size == (640, 480) and not np.any(view.offset)
+
+
+def test_no_image_size_is_refused():
+    rig = make_rig(**WIDE)
+    from dataclasses import replace
+    with pytest.raises(ValueError, match="image size"):
+        IdealView.of(replace(rig, image_size=None))
