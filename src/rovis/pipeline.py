@@ -391,9 +391,11 @@ class Detector:
             warnings.append(f"{len(small)} cover(s) narrower than {self.cfg.min_cover_side * 100:g} "
                             "cm dropped: no book (a printed square, a label)")
         # back to the rig's ideal pixels, and the raw images' (DESIGN §3)
-        objects = [replace(book, id=i,
-                           corners_left_px=raw_rig.distort_points(view.to_rig_ideal(book.corners_left_px), "left"),
-                           corners_right_px=raw_rig.distort_points(view.to_rig_ideal(book.corners_right_px), "right"))
+        def raw(px: NDArray[np.float64], cam: Literal["left", "right"]) -> NDArray[np.float64]:
+            return raw_rig.distort_points(view.to_rig_ideal(px), cam)
+
+        objects = [replace(book, id=i, corners_left_px=raw(book.corners_left_px, "left"),
+                           corners_right_px=raw(book.corners_right_px, "right"))
                    for i, (_, book) in enumerate(found)]
         return FrameResult(
             objects=objects, desk_plane=None if desk_plane is None else desk_plane.copy(),
