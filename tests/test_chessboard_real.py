@@ -80,6 +80,7 @@ def test_the_sheet_under_the_board_is_found_in_every_pair(bumblebee_dir):
         sizes = [sorted(o.pose.size[:2]) for o in result.objects]
         assert any(abs(a - 0.216) <= 0.003 and abs(b - 0.279) <= 0.004 for a, b in sizes), \
             (left.name, sizes)
+        assert all(0.0 <= o.quality <= 1.0 for o in result.objects)
 
 
 def test_the_sheet_needs_the_whole_field_of_view(bumblebee_dir):

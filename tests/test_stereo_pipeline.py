@@ -255,6 +255,9 @@ def test_no_marker_means_left_camera_frame_and_says_so(scene):
                                  image_size=rig.image_size)
     res = detect(r.left, r.right, bare, cfg=DetectConfig(use_marker=False))
     assert res.world_frame == "left_camera" and res.desk_plane is None
+    # covers found in one image only are among them (the one-image search on the quad's
+    # own plane); every quality is an edge-support fraction
+    assert res.objects and all(0.0 <= o.quality <= 1.0 for o in res.objects)
     blank = np.full_like(r.left, 120)
     res = detect(blank, blank, bare)
     assert res.world_frame == "left_camera" and len(res) == 0

@@ -35,7 +35,7 @@ def test_every_raw_pixel_lies_in_the_grown_frame():
 
 def test_valid_marks_the_pixels_the_raw_image_gives():
     rig = make_rig(**WIDE)
-    view = IdealView.of(rig, margin_px=0)
+    view = IdealView.of(rig)  # 3 px inside the raw border: no black blended in
     valid = view.valid["left"] > 0
     # the ideal image of the principal point, and of a raw pixel near a corner, are valid
     c = np.rint(view.from_rig_ideal(rig.K1[:2, 2])).astype(int)
@@ -71,8 +71,38 @@ def test_without_full_view_or_barrel_distortion_the_frame_is_the_rigs():
     assert view.size == (640, 480) and not np.any(view.offset)
 
 
+def test_a_lens_without_distortion_keeps_its_frame_and_every_pixel():
+    rig = make_rig(image_size=(640, 480), f_px=400.0, distortion=(0, 0, 0, 0, 0))
+    view = IdealView.of(rig)
+    assert view.size == (640, 480) and not np.any(view.offset) and not view.grown
+    assert view.rig(rig) is rig and view.valid["left"].all()
+
+
+def test_a_lens_model_that_folds_back_is_not_grown():
+    # k1 = -0.36 without k2 peaks inside the image: its border does not invert
+    rig = make_rig(image_size=(640, 480), f_px=400.0, distortion=(-0.36, 0, 0, 0, 0))
+    view = IdealView.of(rig)
+    assert view.size == (640, 480) and not np.any(view.offset)
+
+
 def test_no_image_size_is_refused():
     rig = make_rig(**WIDE)
     from dataclasses import replace
     with pytest.raises(ValueError, match="image size"):
         IdealView.of(replace(rig, image_size=None))
+
+
+def test_overlays_draw_the_lines_of_the_whole_field_of_view():
+    # a Hough line in the band the grown frame added (left of the rig's own ideal frame)
+    # is drawn in the raw image, near its left edge
+    from rovis.segment.lines import Lines
+    from rovis.viz import _line_polylines
+    rig = make_rig(**WIDE)
+    x = float(rig.undistort_points([[3.0, 240.0]], "left")[0, 0]) + 5.0  # ideal x < 0
+    assert x < -50
+    lines = Lines(np.array([x]), np.array([0.0]), np.array([100]))  # the vertical x = const
+    polylines = _line_polylines(lines, (640, 480), rig, "left")
+    assert len(polylines) == 1
+    raw = polylines[0]
+    assert raw[:, 0].max() < 40 and raw[:, 1].max() - raw[:, 1].min() > 200
+    assert np.all((raw >= 0) & (raw <= [639, 479]))

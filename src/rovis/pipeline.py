@@ -46,7 +46,8 @@ from rovis.undistort import IdealView
 
 # Why a stereo pair of quads makes no book (:meth:`Detector._reconstruct_or_why`): its
 # corners do not triangulate to a quadrilateral; a side is longer than any book (or, after
-# the extent step, shorter than any book's: a printed square, a label); the cover
+# the extent step — at once without the desk plane, where none follows — shorter than any
+# book's: a printed square, a label); the cover
 # is tilted against the desk; it stands below the desk (or, found in one image only or
 # among the alternatives, lower than any book) or more than StereoConfig.max_height above
 # it; a side lies on the desk; its print matches between the images at another height
@@ -328,7 +329,7 @@ class Detector:
                       or _three_sided(segs["right"], mt.right)) for mt in matches]
         lap("stereo")
         # the print inside each cover, both images, for the height test (rovis.sweep)
-        texture = ({cam: high_pass(ideal[cam], self.cfg.sweep.sigma_px) for cam in ideal}
+        texture = (self._texture(ideal)
                    if (self.cfg.sweep.check or self.cfg.sweep.transfer) and desk_plane is not None
                    else None)
         books = [self._reconstruct_or_why(rig, pair, desk_plane, texture) for pair in pairs]
@@ -367,7 +368,7 @@ class Detector:
         if self.cfg.heightmap.enabled and desk_plane is not None:
             # beyond the paper: books that stand out of the desk in a height map
             if texture is None:
-                texture = {cam: high_pass(ideal[cam], self.cfg.sweep.sigma_px) for cam in ideal}
+                texture = self._texture(ideal)
             found += self._from_height_map(rig, grads, found, desk_plane, texture)
             lap("heightmap")
         # a failed pair whose quad became a book through the one-image search is not lost
@@ -410,6 +411,15 @@ class Detector:
             dropped=[(why, view.to_rig_ideal(a), view.to_rig_ideal(b)) for why, a, b in dropped])
 
     # -- stages ---------------------------------------------------------------------------
+
+    def _texture(self, ideal: dict[str, NDArray[np.uint8]]) -> dict[str, NDArray[np.float32]]:
+        """Each ideal image's print (:func:`rovis.sweep.high_pass`), none beyond the raw
+        field of view (its black, and the step into it, are no print)."""
+        out = {cam: high_pass(img, self.cfg.sweep.sigma_px) for cam, img in ideal.items()}
+        if self._view.grown:
+            for cam, tex in out.items():
+                tex[self._view.valid[cam] == 0] = 0.0
+        return out
 
     def _check_sizes(self, left: NDArray[np.uint8], right: NDArray[np.uint8]) -> None:
         if left.shape != right.shape:
@@ -482,7 +492,8 @@ class Detector:
                        for k in range(len(segs[src])) if k not in used[src]), reverse=True)
         out = []
         n_alt = self.cfg.stereo.transfer_alternatives
-        for quality, src, dst, k in todo:
+        for _, src, dst, k in todo:
+            quality = float(segs[src].support[k])
             overlap = self.cfg.stereo.transfer_max_overlap
             if any(quad_overlap(segs[src].corners[k], q) > overlap for q in taken[src]):
                 continue  # already a book, from the other image's quad

@@ -35,6 +35,36 @@ Camera = Literal["left", "right"]
 _BORDER_SAMPLES = 64
 
 
+def ideal_bounds(rig: StereoRig) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The smallest box (lo, hi), (2,) each, of the rig's ideal pixels that holds both raw
+    images' whole field of view, and the raw image's own pixel box.
+
+    The raw border is undistorted at ``_BORDER_SAMPLES`` points a side. A lens model that
+    folds back within the image (strong barrel distortion without the term that bounds it)
+    does not invert there: then the raw image's own box is returned, as without growing.
+    """
+    assert rig.image_size is not None
+    w, h = rig.image_size
+    lo, hi = np.zeros(2), np.array([w - 1.0, h - 1.0])
+    t = np.linspace(0.0, 1.0, _BORDER_SAMPLES)
+    border = np.vstack([np.column_stack([t * (w - 1), np.zeros_like(t)]),
+                        np.column_stack([t * (w - 1), np.full_like(t, h - 1.0)]),
+                        np.column_stack([np.zeros_like(t), t * (h - 1)]),
+                        np.column_stack([np.full_like(t, w - 1.0), t * (h - 1)])])
+    grown_lo, grown_hi = lo.copy(), hi.copy()
+    for cam in ("left", "right"):
+        ideal = rig.undistort_points(border, cam)
+        if not np.all(np.isfinite(ideal)) or \
+                np.abs(rig.distort_points(ideal, cam) - border).max() > 0.5:
+            return lo, hi
+        grown_lo = np.minimum(grown_lo, ideal.min(axis=0))
+        grown_hi = np.maximum(grown_hi, ideal.max(axis=0))
+    # at most twice the raw size: beyond that the model is extrapolating
+    if np.any(grown_hi - grown_lo > 2.0 * np.array([w, h])):
+        return lo, hi
+    return grown_lo, grown_hi
+
+
 @dataclass(frozen=True, eq=False)
 class IdealView:
     """The undistorted images' pixel frame for one rig, and the maps that make them.
@@ -43,8 +73,8 @@ class IdealView:
     ----------
     offset : ndarray, shape (2,), float64
         Pixels: an ideal pixel of the rig (camera matrix K) is at ``px + offset`` here.
-        Zero where the raw field of view fits the raw image's size (``full=False``, or a
-        lens without barrel distortion).
+        Zero where the raw field of view fits the raw image's size on the top and left
+        (``full=False``, or a lens without barrel or tangential distortion).
     size : (int, int)
         Width and height of the ideal images, pixels.
     maps : dict
@@ -69,7 +99,7 @@ class IdealView:
             With its image size.
         full : bool
             Grow the frame so that every raw pixel is in it (the same offset and size for
-            both cameras); else the raw image's size and K as they are.
+            both cameras; :func:`ideal_bounds`); else the raw image's size and K as they are.
         margin_px : int
             The band inside the raw image's border left out of :attr:`valid`: the 3×3
             Sobel and the Gaussian before it see the black beyond the border that far.
@@ -77,36 +107,30 @@ class IdealView:
         if rig.image_size is None:
             raise ValueError("calibration: image size unknown; give image_width/height")
         w, h = rig.image_size
-        lo, hi = np.zeros(2), np.array([w - 1.0, h - 1.0])
-        if full:
-            t = np.linspace(0.0, 1.0, _BORDER_SAMPLES)
-            border = np.vstack([np.column_stack([t * (w - 1), np.zeros_like(t)]),
-                                np.column_stack([t * (w - 1), np.full_like(t, h - 1.0)]),
-                                np.column_stack([np.zeros_like(t), t * (h - 1)]),
-                                np.column_stack([np.full_like(t, w - 1.0), t * (h - 1)])])
-            for cam in ("left", "right"):
-                ideal = rig.undistort_points(border, cam)
-                lo = np.minimum(lo, np.floor(ideal.min(axis=0)))
-                hi = np.maximum(hi, np.ceil(ideal.max(axis=0)))
-        offset = -lo
-        size = (int(hi[0] - lo[0]) + 1, int(hi[1] - lo[1]) + 1)
+        lo, hi = ideal_bounds(rig) if full else (np.zeros(2), np.array([w - 1.0, h - 1.0]))
+        offset = -np.floor(lo)
+        size = (int(np.ceil(hi[0]) + offset[0]) + 1, int(np.ceil(hi[1]) + offset[1]) + 1)
         maps, valid = {}, {}
         for cam in ("left", "right"):
             K, D = rig.intrinsics(cam)
             K_view = K.copy()
             K_view[:2, 2] += offset
             mx, my = cv2.initUndistortRectifyMap(K, D, None, K_view, size, cv2.CV_32FC1)
-            inside = ((mx >= 0) & (mx <= w - 1) & (my >= 0) & (my <= h - 1)).astype(np.uint8) * 255
+            # half a pixel of slack: a lens without distortion maps row 0 to y = -1e-5
+            inside = ((mx >= -0.5) & (mx <= w - 0.5) & (my >= -0.5) & (my <= h - 0.5))
+            inside = inside.astype(np.uint8) * 255
             if margin_px > 0 and not inside.all():
                 k = 2 * margin_px + 1
-                inside = cv2.erode(inside, np.ones((k, k), np.uint8), borderType=cv2.BORDER_REPLICATE)
+                inside = cv2.erode(inside, np.ones((k, k), np.uint8), borderType=cv2.BORDER_CONSTANT,
+                                   borderValue=0)  # the canvas edge is the raw border too
             maps[cam] = cv2.convertMaps(mx, my, cv2.CV_16SC2)
             valid[cam] = inside
         return cls(offset.astype(np.float64), size, maps, valid)
 
     @property
     def grown(self) -> bool:
-        """Whether this frame differs from the rig's own (an offset or a larger canvas)."""
+        """Whether the ideal images hold pixels the raw images do not give (a larger
+        canvas, or a pincushion lens's corners): then :attr:`valid` matters."""
         return bool(np.any(self.offset != 0)) or not all(v.all() for v in self.valid.values())
 
     def undistort(self, raw: NDArray[np.uint8], camera: Camera) -> NDArray[np.uint8]:
@@ -119,7 +143,7 @@ class IdealView:
         distorted=False)``) work in this frame's pixels. Not for raw pixels (its
         ``distort_points`` and ``undistort_points`` would be off by the offset): use
         :meth:`to_rig_ideal` and the original rig for those."""
-        if not np.any(self.offset):
+        if not np.any(self.offset) and self.size == rig.image_size:
             return rig
         S = np.array([[1.0, 0.0, self.offset[0]], [0.0, 1.0, self.offset[1]], [0.0, 0.0, 1.0]])
         return StereoRig.from_arrays(K1=S @ rig.K1, D1=rig.D1, K2=S @ rig.K2, D2=rig.D2, R=rig.R,

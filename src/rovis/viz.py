@@ -21,6 +21,7 @@ from rovis.calib import StereoRig
 from rovis.imageio import to_gray_u8
 from rovis.io import write_figure_atomic
 from rovis.results import FrameResult
+from rovis.undistort import ideal_bounds
 
 Camera = Literal["left", "right"]
 
@@ -142,32 +143,47 @@ def _roi_polygon(result: FrameResult, camera: Camera, rig: StereoRig | None) -> 
 
 def _line_polylines(lines: Any, size: tuple[int, int], rig: StereoRig | None,
                     camera: Camera) -> list[NDArray[np.float64]]:
-    """Each Hough line (ideal pixels, ``x cos θ + y sin θ = ρ``) as a raw-image polyline."""
+    """Each Hough line (ideal pixels, ``x cos θ + y sin θ = ρ``) as a raw-image polyline.
+
+    With a rig the lines are clipped to the ideal pixels the raw image's whole field of view
+    covers (:func:`rovis.undistort.ideal_bounds`: the detector searches there), then drawn
+    through the lens, their points outside the raw image left out."""
     w, h = size
+    box = (0.0, 0.0, w - 1.0, h - 1.0)
+    if rig is not None and rig.image_size is not None:
+        lo, hi = ideal_bounds(rig)
+        box = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
     out = []
     for rho, theta in zip(np.asarray(lines.rho, dtype=np.float64),
                           np.asarray(lines.theta, dtype=np.float64)):
-        seg = _clip_line(rho, theta, w, h)
+        seg = _clip_line(rho, theta, box)
         if seg is None:
             continue
         t = np.linspace(0.0, 1.0, _LINE_SAMPLES if rig is not None else 2)[:, None]
         ideal = seg[0] + t * (seg[1] - seg[0])
-        out.append(rig.distort_points(ideal, camera) if rig is not None else ideal)
+        if rig is None:
+            out.append(ideal)
+            continue
+        raw = rig.distort_points(ideal, camera)
+        keep = np.all((raw >= 0) & (raw <= [w - 1.0, h - 1.0]), axis=1)
+        if keep.sum() >= 2:
+            out.append(raw[keep])
     return out
 
 
-def _clip_line(rho: float, theta: float, w: int, h: int) -> NDArray[np.float64] | None:
-    """The two ends (2, 2) of the line's part inside the image rectangle, or None."""
+def _clip_line(rho: float, theta: float,
+               box: tuple[float, float, float, float]) -> NDArray[np.float64] | None:
+    """The two ends (2, 2) of the line's part inside ``box`` (x0, y0, x1, y1), or None."""
     n = np.array([np.cos(theta), np.sin(theta)])
     d = np.array([-n[1], n[0]])
     p0 = rho * n
     lo, hi = -np.inf, np.inf
-    for axis, limit in ((0, w - 1.0), (1, h - 1.0)):
+    for axis, start, limit in ((0, box[0], box[2]), (1, box[1], box[3])):
         if abs(d[axis]) < 1e-12:
-            if not 0.0 <= p0[axis] <= limit:
+            if not start <= p0[axis] <= limit:
                 return None
             continue
-        a, b = (0.0 - p0[axis]) / d[axis], (limit - p0[axis]) / d[axis]
+        a, b = (start - p0[axis]) / d[axis], (limit - p0[axis]) / d[axis]
         lo, hi = max(lo, min(a, b)), min(hi, max(a, b))
     if not hi > lo:
         return None

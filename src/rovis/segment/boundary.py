@@ -406,7 +406,8 @@ def _join(sides: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
 def cover_edge_offset(grad: Gradients, a: NDArray[np.float64], b: NDArray[np.float64],
                       n_in: NDArray[np.float64], *, max_px: float = 25.0,
                       min_ratio: float = 0.15, min_consistency: float = 0.6) -> float:
-    """How far inside side ``a``–``b`` (px, along ``n_in``) the cover edge lies; 0 if here.
+    """How far inside side ``a``–``b`` (px, along ``n_in``) the cover edge lies; 0 if here
+    (−1 where the line lies 2–3 px inside the outer edge and the cover edge between them).
 
     The derivative across the side is sampled along it at offsets from −3 px (outside) to
     ``max_px`` inside (a page block is at most ~25 px wide at these distances; a printed

@@ -206,13 +206,15 @@ class SupportProfile:
 
 def support_profile(lines: Lines, edges: NDArray[np.uint8], grad: Gradients | None = None, *,
                     box: tuple[int, int, int, int] | None = None,
-                    max_angle_deg: float = 25.0,
-                    near: NDArray[np.uint8] | None = None) -> SupportProfile:
+                    max_angle_deg: float = 25.0, near: NDArray[np.uint8] | None = None,
+                    seen: NDArray[np.uint8] | None = None) -> SupportProfile:
     """Sample edges along every line where it crosses ``box`` (default: the image).
 
     A sample is a hit when an edge pixel lies within 1 px (3×3 dilation) and, given
     ``grad``, the image gradient there points across the line (within ``max_angle_deg``):
     the alignment test keeps dense texture or noise from supporting arbitrary lines.
+    Samples where ``seen`` (default: ``grad.seen``) is 0 are out of view, as beyond the
+    image (:attr:`SupportProfile.t_in`); ``near``: the edges' 3×3 dilation, if done already.
     """
     h, w = edges.shape
     x0, y0, x1, y1 = box if box is not None else (0, 0, w, h)
@@ -238,8 +240,10 @@ def support_profile(lines: Lines, edges: NDArray[np.uint8], grad: Gradients | No
     at *= w
     at += xi
     at *= inside
-    if grad is not None and grad.seen is not None:  # beyond the raw field of view: out of view
-        inside &= grad.seen.ravel()[at] > 0
+    if seen is None and grad is not None:
+        seen = grad.seen
+    if seen is not None:  # beyond the raw field of view: out of view
+        inside &= seen.ravel()[at] > 0
         at *= inside
     hit = near.ravel()[at] > 0
     hit &= inside
@@ -262,7 +266,6 @@ def support_profile(lines: Lines, edges: NDArray[np.uint8], grad: Gradients | No
 def refine_lines(lines: Lines, edges: NDArray[np.uint8], profile: SupportProfile,
                  grad: Gradients | None = None, *, box: tuple[int, int, int, int] | None = None,
                  passes: int = 2, min_span_px: float = 250.0, max_turn_deg: float = 0.6,
-                 max_shift_px: float = 1.0,
                  max_scatter_px: float = 0.5) -> tuple[Lines, SupportProfile]:
     """Beyond the paper: each long line fitted to the edge pixels it is supported by.
 
@@ -272,8 +275,8 @@ def refine_lines(lines: Lines, edges: NDArray[np.uint8], profile: SupportProfile
     (:func:`rovis.segment.quads._arm`). For every sample of ``profile`` with a hit, the
     edge pixel's offset across the line (−1, 0 or +1 px, the nearest with an edge) is
     read, and offset = a + b·t is fitted by least squares over the line's hits; the line
-    is moved by that (a shift of at most ``max_shift_px``, a turn of at most
-    ``max_turn_deg`` — Hough's cells are 1 px and 1° —, for hits spread over at least
+    is moved by that (by at most a pixel where its hits are, as their offsets are; a turn
+    of at most ``max_turn_deg`` — Hough's cells are 1 px and 1° —, for hits spread over at least
     ``min_span_px`` and scattered by at most ``max_scatter_px`` (RMS) about the fit; a
     line with hits over less than ~230 px is within a pixel of its edge wherever it has
     them, and stays as it is: with 150 px, Table II dev-set books 194 → 189).
@@ -317,7 +320,6 @@ def refine_lines(lines: Lines, edges: NDArray[np.uint8], profile: SupportProfile
         prof = SupportProfile(cum[todo], t0[todo], None if t_in is None else t_in[todo])
         new_rho, new_theta, moved = _fit_to_hits(part, edges, prof, min_span_px=min_span_px,
                                                  max_turn_deg=max_turn_deg,
-                                                 max_shift_px=max_shift_px,
                                                  max_scatter_px=max_scatter_px)
         todo = todo[moved]
         if len(todo) == 0:
@@ -344,9 +346,9 @@ def refine_lines(lines: Lines, edges: NDArray[np.uint8], profile: SupportProfile
 def _without_merged(rho: NDArray[np.float64], theta: NDArray[np.float64],
                     moved: NDArray[np.intp], rho_tol: float = 0.5,
                     theta_tol: float = np.radians(0.2)) -> NDArray[np.intp]:
-    """Indices of the lines (strongest first) left when each moved line that now equals
-    a stronger one (within ``rho_tol`` px and ``theta_tol`` rad, (ρ, θ) and (−ρ, θ ± π)
-    being one line) or a weaker moved one is merged into the strongest of them."""
+    """Indices of the lines (strongest first) left when the lines a moved line now
+    equals (within ``rho_tol`` px and ``theta_tol`` rad, (ρ, θ) and (−ρ, θ ± π) being one
+    line) are merged into the strongest of them, moved or not."""
     drop = np.zeros(len(rho), bool)
     for i in moved.tolist():
         if drop[i]:
@@ -364,8 +366,7 @@ def _without_merged(rho: NDArray[np.float64], theta: NDArray[np.float64],
 
 
 def _fit_to_hits(lines: Lines, edges: NDArray[np.uint8], profile: SupportProfile, *,
-                 min_span_px: float, max_turn_deg: float, max_shift_px: float,
-                 max_scatter_px: float) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                 min_span_px: float, max_turn_deg: float, max_scatter_px: float) -> tuple[NDArray[np.float64], NDArray[np.float64],
                                                  NDArray[np.bool_]]:
     """One pass of :func:`refine_lines`: the fitted (ρ, θ) of every line and which moved."""
     N = len(lines)
@@ -408,7 +409,7 @@ def _fit_to_hits(lines: Lines, edges: NDArray[np.uint8], profile: SupportProfile
     span = np.where(last >= first, t[np.maximum(last, 0)] - t[np.minimum(first, len(t) - 1)], 0.0) \
         if len(t) else np.zeros(N)
     moved = ((span >= min_span_px) & (np.abs(b) <= np.tan(np.radians(max_turn_deg)))
-             & (np.abs(mean_o) <= max_shift_px) & (var <= max_scatter_px ** 2)
+             & (var <= max_scatter_px ** 2)
              & ((np.abs(a) > 1e-3) | (np.abs(b) > 1e-6)))
     # the fitted line runs through rho·n + a·n along d + b·n
     n, d = lines.normals, lines.directions

@@ -14,6 +14,7 @@ eq. 1 corner order), so their results differ only by how edges and lines are fou
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -54,6 +55,11 @@ def segment(gray: NDArray[np.uint8], grad: Gradients, method: str = "closed", *,
     clock = time.perf_counter()
     refine = (None if cfg.refine_gamma == 1.0
               else linear_gradients(gray, grad.mask, gamma=cfg.refine_gamma))
+    if refine is not None and grad.seen is not None:
+        # beyond the field of view (Gradients.seen) no edge to refine onto, as on ``grad``
+        for g in (refine.dx, refine.dy):
+            g[grad.seen == 0] = 0
+        refine = replace(refine, seen=grad.seen)
     if timing is not None:
         timing["refine"] = timing.get("refine", 0.0) + 1e3 * (time.perf_counter() - clock)
     if method == "closed":
@@ -124,7 +130,8 @@ def _lsd(gray: NDArray[np.uint8], grad: Gradients, cfg: SegmentConfig) -> Evalua
     drawn = np.zeros(grad.shape, np.uint8)  # the segments are LSD's "edge pixels"
     for x1, y1, x2, y2 in segs[order]:
         cv2.line(drawn, (int(round(x1)), int(round(y1))), (int(round(x2)), int(round(y2))), 255, 1)
-    quads = candidate_quads(lines, support_profile(lines, drawn), grad.shape, area, cfg.quads)
+    quads = candidate_quads(lines, support_profile(lines, drawn, seen=grad.seen), grad.shape,
+                            area, cfg.quads)
     covers = CoverSelection(quads, cfg.quads).at(0)
     return Evaluation(0.0, 0, 0.0, lines, covers, 1)
 

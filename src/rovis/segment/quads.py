@@ -135,7 +135,7 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     lo, hi = lo.reshape(-1, 4), hi.reshape(-1, 4)
     seen = np.maximum(hi - lo, 0.0)  # the part of each side inside the image
     hits = profile.hits(side_lines.ravel(), lo.ravel(), np.maximum(hi, lo).ravel()).reshape(-1, 4)
-    support = hits / np.maximum(seen, 1.0)
+    support = np.minimum(hits / np.maximum(seen, 1.0), 1.0)  # rounding: a sample over, at most
     ok = (_min4(support.T) >= cfg.min_support) & \
         (_min4(seen.T) >= cfg.min_in_view * _min4(np.maximum(length - 2 * trim, 1.0).T))
     side_lines, hits, support = side_lines[ok], hits[ok], support[ok]
