@@ -494,6 +494,8 @@ class Detector:
         n_alt = self.cfg.stereo.transfer_alternatives
         for _, src, dst, k in todo:
             quality = float(segs[src].support[k])
+            if desk_plane is None and quality < self.cfg.stereo.free_transfer_support:
+                continue  # the plane and depth come from the quad alone: a clean one only
             overlap = self.cfg.stereo.transfer_max_overlap
             if any(quad_overlap(segs[src].corners[k], q) > overlap for q in taken[src]):
                 continue  # already a book, from the other image's quad

@@ -53,6 +53,11 @@ class StereoConfig:
     max_refine_px: float = 4.0  # refined corners this close to the predicted ones (the source
     # quad may be a few pixels off: a side on its page block, or stopped short)
     transfer_max_overlap: float = 0.3  # of the smaller quad, with one already used
+    # Without the desk plane the search fixes less (the plane comes from the quad itself,
+    # the depth from 0.2 to 5 m): only a quad its own image backs this well (mean edge
+    # support of its sides) is looked for. On the real pairs the chess sheet's quads had
+    # 0.98-1.0, the chair parts a robot would have taken for books 0.83-0.90.
+    free_transfer_support: float = 0.95
     # A pair that fails a pose check (rovis.pipeline.ALTERNATIVE_REASONS) is retried with
     # the other quads the closed loop found over it (Segmentation.alternatives).
     alternatives: bool = True
