@@ -234,6 +234,7 @@ class Detector:
         self.cfg = cfg or DetectConfig()
         # Raw → ideal maps, computed once: for each ideal pixel, where to read the raw image.
         self._view = IdealView.of(rig, full=self.cfg.full_view)
+        self._view_rigs: tuple[bytes, StereoRig] | None = None  # _view_rig's last
         self._controllers = {cam: CascadeController(self.cfg.segment) for cam in ("left", "right")}
         # The last ROI per camera: a registered rig's (or a still marker's) is the same
         # every frame, so it is drawn once.
@@ -291,7 +292,7 @@ class Detector:
         # 2. undistort, into a frame that holds the whole raw field of view (IdealView):
         # from here on pixels are that frame's, and ``rig`` the rig whose Q_L, Q_R give them
         view = self._view
-        raw_rig, rig = rig, view.rig(rig)
+        raw_rig, rig = rig, self._view_rig(rig)
         ideal = {cam: view.undistort(gray[cam], cam) for cam in gray}
         lap("undistort")
 
@@ -411,6 +412,14 @@ class Detector:
             dropped=[(why, view.to_rig_ideal(a), view.to_rig_ideal(b)) for why, a, b in dropped])
 
     # -- stages ---------------------------------------------------------------------------
+
+    def _view_rig(self, rig: StereoRig) -> StereoRig:
+        """``self._view.rig(rig)``, built once per world frame (a registered rig's, or a
+        still marker's, is the same every frame)."""
+        key = rig.T_world_left.tobytes() + rig.world_frame.encode()
+        if self._view_rigs is None or self._view_rigs[0] != key:
+            self._view_rigs = (key, self._view.rig(rig))
+        return self._view_rigs[1]
 
     def _texture(self, ideal: dict[str, NDArray[np.uint8]]) -> dict[str, NDArray[np.float32]]:
         """Each ideal image's print (:func:`rovis.sweep.high_pass`), none beyond the raw

@@ -3,8 +3,8 @@
 The ideal image of a rig's camera is the pinhole image of its own camera matrix K. With
 barrel distortion (k1 < 0) the raw image's border maps *outside* the K frame of the raw
 image's size: a wide lens loses a band of its field of view along every edge there
-(70 px of 640 on each side for the real Bumblebee2 pairs, k1 = −0.36; 22 px of 1024 for the
-synthetic rig, k1 = −0.08). :class:`IdealView` grows the ideal frame until the whole raw
+(72 px of 640 at the sides and 57 px of 480 at the top for the real Bumblebee2 pairs,
+k1 = −0.36; 22 px of 1024 for the synthetic rig, k1 = −0.08). :class:`IdealView` grows the ideal frame until the whole raw
 field of view is in it: the same K with its principal point moved by ``offset``, on a larger
 canvas, and a mask of the pixels that come from the raw image. A cover near the raw image's
 edge keeps all four sides (on the chessboard pairs the sheet's fourth side was beyond the
@@ -20,15 +20,12 @@ report, with the lens added back).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from rovis.calib import StereoRig
-
-Camera = Literal["left", "right"]
+from rovis.calib import Camera, StereoRig
 
 # Raw-border samples per image side: the undistorted border is a smooth curve, whose
 # extreme is at a corner or a side's middle; 64 samples place it to well under a pixel.
@@ -37,7 +34,7 @@ _BORDER_SAMPLES = 64
 
 def ideal_bounds(rig: StereoRig) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The smallest box (lo, hi), (2,) each, of the rig's ideal pixels that holds both raw
-    images' whole field of view, and the raw image's own pixel box.
+    images' whole field of view and the raw image's own pixel box.
 
     The raw border is undistorted at ``_BORDER_SAMPLES`` points a side. A lens model that
     folds back within the image (strong barrel distortion without the term that bounds it)
