@@ -711,16 +711,29 @@ class Detector:
                      texture: dict[str, NDArray[np.float32]] | None,
                      others: list[NDArray[np.float64]],
                      ) -> tuple[Pair, BookDetection | None, str]:
-        """A matched pair that failed a pose check, retried with the other quads each
-        image's closed loop found over it (:attr:`Segmentation.alternatives`, refined):
+        """A matched pair that failed a pose check, retried with each image's quad
+        refined without the inward search for the cover edge
+        (``StereoConfig.plain_alternative``) and with the other quads each image's closed
+        loop found over it (:attr:`Segmentation.alternatives`, refined):
         of the pairs that match and pass every check, the one with the smallest stereo
         error; the failed pair and its reason if none does."""
         most = self.cfg.stereo.max_alternatives
         quads: dict[str, list[NDArray[np.float64]]] = {}
+        refined: dict[tuple[str, int], NDArray[np.float64]] = {}
         for cam, k in (("left", mt.left), ("right", mt.right)):
             alts = segs[cam].alternatives[k][:most] if k < len(segs[cam].alternatives) else ()
-            quads[cam] = [segs[cam].corners[k], *alts]
-        refined: dict[tuple[str, int], NDArray[np.float64]] = {}
+            quads[cam] = [segs[cam].corners[k]]
+            if self.cfg.stereo.plain_alternative and k < len(segs[cam].coarse):
+                # The same quad refined without the inward search for the cover edge
+                # (refine_quad's ``down``): a light cover on a white page-block strip
+                # 1-2 px wide shows a faint step at the cover's edge and a strong one at
+                # the strip's foot; one image's search may step in to the first, the
+                # other's not, and the 2-3 px of disparity between them tilt the cover.
+                plain = order_corners(refine_quad_both(grads[cam], segs[cam].coarse[k])[1])
+                if np.abs(plain - segs[cam].corners[k]).max() > 0.25:
+                    refined[cam, len(quads[cam])] = plain
+                    quads[cam].append(plain)
+            quads[cam] += list(alts)
 
         def sub_pixel(cam: str, i: int) -> NDArray[np.float64]:
             # refit once, when first paired (it costs milliseconds)

@@ -62,6 +62,9 @@ class StereoConfig:
     # the other quads the closed loop found over it (Segmentation.alternatives).
     alternatives: bool = True
     max_alternatives: int = 4  # per image, the first found (each pairing costs a sweep)
+    # ...and first with each image's quad refined without the inward search for the cover
+    # edge (a step to a faint edge in one image only tilts the cover)
+    plain_alternative: bool = True
     transfer_alternatives: int = 2  # tried as sources when a quad is found in one image only
     # Where no book is yet, books among the candidate quads neither image's selection kept
     # (Segmentation.pool): pairs that make a flat, book-sized rectangle (pool_pairs).
