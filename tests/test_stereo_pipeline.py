@@ -368,3 +368,29 @@ def test_a_cover_tilted_by_one_images_cover_edge_step_is_refit_without_it():
     np.testing.assert_allclose(sorted(o.pose.size[:2]), sorted(book["size"][:2]), atol=0.01)
     # the retry is what finds it
     assert np.linalg.norm(nearest(False).pose.center - book["center"]) > 0.05
+
+
+def test_a_plain_cover_showing_two_sides_is_found_by_stereo_among_two_sided_candidates():
+    # Table II's scene 18 (rovis synth --protocol table2 --seed 1, 60 lx daylight): a plain
+    # 165 mm cover, 51 mm high, whose far and one lateral side meet a background of its own
+    # brightness: two sides seen, no quad of three or four in either image.
+    from rovis.segment import SegmentConfig
+    from rovis.synth.dataset import dataset_scenes
+
+    sc = next(s for i, s in dataset_scenes("table2", 19, seed=1) if i == 18)
+    r = render(sc, np.random.default_rng([1, 9, 18]))  # what rovis synth renders there
+    book = r.truth["books"][3]
+    assert book["cover"] == "plain"
+
+    def near(two_sided: bool):
+        res = Detector(sc.rig, DetectConfig(segment=SegmentConfig(two_sided=two_sided))
+                       ).detect(r.left, r.right)
+        return [o for o in res.objects if np.linalg.norm(o.pose.center - book["center"]) < 0.05]
+
+    found = near(True)
+    assert len(found) == 1
+    o = found[0]
+    assert np.linalg.norm(o.pose.center - book["center"]) < 0.01  # m
+    assert o.source == "candidates"
+    assert abs(o.pose.size[2] - book["size"][2]) < 0.005  # m
+    assert near(False) == []

@@ -161,3 +161,75 @@ def test_a_segmented_cover_with_a_side_unseen_must_stand_as_high_as_any_found_ot
     quad = np.zeros((4, 2))
     assert det._pose_fails(pose, P, desk, Pair(quad, quad, 1.0, 0.0)) == ""
     assert det._pose_fails(pose, P, desk, Pair(quad, quad, 1.0, 0.0, three_sided=True)) == "height"
+
+
+# -- two sides unseen (two_sided_quads) ----------------------------------------------------
+
+SLANT = np.array([[212.0, 180.0], [452.0, 180.0], [468.0, 330.0], [228.0, 330.0]])  # px
+
+
+def far_and_left_sides_hidden(noise: float = 2.0) -> np.ndarray:
+    """A light cover (180) on a grey desk (100), a parallelogram, its far and left sides
+    against bands of its own brightness: only its right and near sides show a step (an
+    "L"). The left band's lower edge is not in line with the near side, so that side's
+    edge ends at the cover's corner. Drawn 8x supersampled."""
+    S = 8
+    img = np.full((H * S, W * S), 100, np.float32)
+    img[:180 * S + S // 2] = 180
+    for poly in (SLANT, np.array([[0.0, 180.0], [212.0, 180.0], [228.0, 330.0], [0.0, 200.0]])):
+        pts = np.rint((poly * S + (S - 1) / 2) * 16).astype(np.int32)
+        cv2.fillPoly(img, [pts], 180, lineType=cv2.LINE_8, shift=4)
+    img = cv2.resize(img, (W, H), interpolation=cv2.INTER_AREA)
+    rng = np.random.default_rng(5)
+    return np.clip(img + rng.normal(0, noise, img.shape), 0, 255).astype(np.uint8)
+
+
+def _worst_to(quads: np.ndarray, truth: np.ndarray) -> float:
+    if len(quads) == 0:
+        return np.inf
+    return float(np.linalg.norm(_canonical(quads) - order_corners(truth)[None],
+                                axis=2).max(axis=1).min())
+
+
+def test_a_cover_showing_two_sides_is_closed_where_their_edges_end():
+    from rovis.segment.quads import two_sided_quads
+    grad, lines, profile = _chain(far_and_left_sides_hidden())
+    area = roi_area(grad)
+    assert _worst_to(candidate_quads(lines, profile, grad.shape, area).corners, SLANT) > 10.0
+    assert _worst_to(three_sided_quads(lines, profile, grad.shape, area).corners, SLANT) > 10.0
+    two = two_sided_quads(lines, profile, grad.shape, area)
+    assert _worst_to(two.corners, SLANT) < 3.0  # px
+    k = int(np.argmin(np.linalg.norm(_canonical(two.corners) - order_corners(SLANT)[None],
+                                     axis=2).max(axis=1)))
+    assert two.lines[k, 1] == two.lines[k, 2] == -1  # sides 1 and 2 are the open ones
+    assert np.all(two.support[k, [0, 3]] >= 0.7) and np.all(two.support[k, [1, 2]] == 0.0)
+
+
+def test_blank_images_give_no_two_sided_candidates():
+    from rovis.segment.boundary import two_sided_candidates
+    for img in (np.zeros((H, W), np.uint8), np.full((H, W), 255, np.uint8)):
+        grad = gradients(img)
+        ev = evaluate(grad, 60.0, SegmentConfig())
+        assert len(two_sided_candidates(grad, ev, SegmentConfig())) == 0
+
+
+def test_the_closed_loop_offers_two_sided_candidates_to_stereo_only():
+    grad = gradients(far_and_left_sides_hidden())
+    seg = CascadeController(SegmentConfig(), warm_start=False).segment(grad)
+    assert _worst_to(seg.corners, SLANT) > 10.0  # never a cover of one image
+    assert _worst_to(seg.open_pool.corners, SLANT) < 3.0
+    off = CascadeController(SegmentConfig(two_sided=False), warm_start=False).segment(grad)
+    assert _worst_to(off.open_pool.corners, SLANT) > 10.0
+
+
+def test_side_evidence_tells_a_faint_step_from_none():
+    from rovis.segment.boundary import side_evidence
+    grad = gradients(far_and_left_sides_hidden())
+    ev = side_evidence(grad, order_corners(SLANT), 12.0)  # grey levels / px (Sobel)
+    # eq. 1 order: far (top), right, near (bottom), left
+    assert ev[1] > 0.9 and ev[2] > 0.9  # the seen sides, along their whole length
+    assert ev[0] < 0.1 and ev[3] < 0.1  # no step where the cover meets its bands
+    faint = far_and_left_sides_hidden(noise=0.0).astype(np.float32)
+    faint[:180] = 172  # the far band 8 grey levels darker than the cover: a faint step
+    ev = side_evidence(gradients(np.clip(faint, 0, 255).astype(np.uint8)), order_corners(SLANT), 12.0)
+    assert ev[0] > 0.9

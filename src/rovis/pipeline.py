@@ -35,7 +35,7 @@ from rovis.results import BookDetection, FrameResult, SegmentationInfo
 from rovis.segment import CascadeController, SegmentConfig, Segmentation, gradients
 from rovis.segment.edges import CANNY_LOW_RATIO, Gradients
 from rovis.segment.methods import METHODS, segment
-from rovis.segment.boundary import refine_quad, refine_quad_both
+from rovis.segment.boundary import refine_quad, refine_quad_both, side_evidence
 from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
 from rovis.stereo import (Match, StereoConfig, find_in_other_view, flat_rectangle, match_quads,
                           pool_pairs)
@@ -604,6 +604,17 @@ class Detector:
                               for k, s in zip(j[index].tolist(), pp.shift[index].tolist())])
             return left.reshape(-1, 4, 2), right.reshape(-1, 4, 2)
 
+        # A candidate with two sides unseen (rovis.segment.quads.two_sided_quads) closes an
+        # L where its two sides' edges end: between two books, or over a paper, that is
+        # often no cover. Each of its refined sides must show a step across it at half
+        # the Canny low threshold, along StereoConfig.two_sided_evidence of its length.
+        evidence = 0.5
+        strength = {cam: CANNY_LOW_RATIO * (segs[cam].T_H or cfg.segment.open_T_H)
+                    for cam in ("left", "right")}
+
+        def two_open(quads: Quads, k: int) -> bool:
+            return bool(np.count_nonzero(quads.lines[k] < 0) >= 2)
+
         every = np.arange(len(i))
         left, right = refine_pairs(every, (True, True))
         ok = flat(left, right)
@@ -630,6 +641,14 @@ class Detector:
                 continue
             if _is_union(rank, left[keep], area, overlap):
                 continue
+            if (two_open(pool["left"], i[a]) or two_open(pool["right"], j[a])) and min(
+                    side_evidence(grads[cam], q, evidence * strength[cam]).min()
+                    for cam, q in (("left", left[a]), ("right", right[a]))) < cfg.stereo.two_sided_evidence:
+                continue  # two sides guessed: each must show a step, in both images
+            if (two_open(pool["left"], i[a]) or two_open(pool["right"], j[a])) and np.ptp(
+                    geometry.plane_distance(desk_plane, geometry.triangulate_dlt(
+                        rig.Q_L, rig.Q_R, left[a], right[a]))) > cfg.stereo.two_sided_flatness:
+                continue  # ...and its corners one height: a guessed corner is off in depth
             quality = float(min(pool["left"].support[i[a]].mean(),
                                 pool["right"].support[j[a]].mean()))
             shift = int(np.argmin(left[a].sum(axis=1)))  # eq. 1 order, kept after refinement

@@ -65,6 +65,11 @@ class StereoConfig:
     # ...and first with each image's quad refined without the inward search for the cover
     # edge (a step to a faint edge in one image only tilts the cover)
     plain_alternative: bool = True
+    # A pool candidate with two sides unseen (Segmentation.open_pool) is kept only where
+    # every refined side shows a step along at least this share of it, in both images
+    # (rovis.segment.boundary.side_evidence)
+    two_sided_evidence: float = 0.45
+    two_sided_flatness: float = 0.015  # metres: its refined corners' heights differ at most so
     transfer_alternatives: int = 2  # tried as sources when a quad is found in one image only
     # Where no book is yet, books among the candidate quads neither image's selection kept
     # (Segmentation.pool): pairs that make a flat, book-sized rectangle (pool_pairs).

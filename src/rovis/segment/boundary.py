@@ -20,7 +20,8 @@ from rovis.segment.edges import Gradients, canny
 from rovis.segment.lines import (Lines, SupportProfile, hough_lines, intersect, refine_lines,
                                  refine_segment, support_profile)
 from rovis.segment.quads import (CoverSelection, QuadConfig, Quads, _canonical, _distinct,
-                                 candidate_quads, order_corners, three_sided_quads)
+                                 candidate_quads, order_corners, three_sided_quads,
+                                 two_sided_quads)
 from rovis.segment.quality import PRINTED, quality
 
 
@@ -111,6 +112,7 @@ class SegmentConfig:
     three_sided: bool = True
     three_sided_evaluations: int = 3
     three_sided_support: float = 0.95
+    two_sided: bool = True
     quads: QuadConfig = field(default_factory=QuadConfig)
 
 
@@ -342,6 +344,20 @@ def open_candidates(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
     return quads
 
 
+def two_sided_candidates(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
+                         area: float | None = None,
+                         timing: dict[str, float] | None = None) -> Quads:
+    """The two-sided candidates (:func:`two_sided_quads`) of one evaluation, from the lines
+    its candidates were formed from (``timing``: under ``"two_sided"``)."""
+    if ev.all_lines is None or ev.profile is None or len(ev.all_lines) < 2:
+        return Quads.empty()
+    clock = time.perf_counter()
+    area = roi_area(grad) if area is None else area
+    quads = two_sided_quads(ev.all_lines, ev.profile, grad.shape, area, cfg.quads)
+    _lap(timing, "two_sided", clock)
+    return quads
+
+
 def refine_quad(grad: Gradients, corners: NDArray[np.float64], *,
                 down: tuple[float, float] = (0.0, 1.0)) -> NDArray[np.float64]:
     """Sub-pixel corners (4, 2): each side refit to the gradient, neighbours intersected.
@@ -400,6 +416,35 @@ def _join(sides: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
         p = intersect(*sides[s - 1], *sides[s])
         if p is not None and np.linalg.norm(p - corners[s]) < 40.0:
             out[s] = p
+    return out
+
+
+def side_evidence(grad: Gradients, corners: NDArray[np.float64], threshold: float, *,
+                  reach_px: float = 1.0, trim_px: float = 3.0) -> NDArray[np.float64]:
+    """Per side of a quad (4, 2), the share of its pixels where the derivative across it
+    reaches ``threshold`` (grey levels per pixel, the Sobel scale), at the best offset
+    within ``reach_px`` of the side: shape (4,), each in [0, 1].
+
+    A weaker test than Canny's (no hysteresis, no thinning, no maximum): it asks whether a
+    side hypothesised where no line was found shows any step at all, as a faint cover
+    edge does along its length and the desk's grain or a neighbour's print mostly does not.
+    """
+    out = np.zeros(4)
+    offsets = np.arange(-reach_px, reach_px + 1e-9, 0.5)
+    for s in range(4):
+        a, b = corners[s], corners[(s + 1) % 4]
+        length = float(np.linalg.norm(b - a))
+        t = np.arange(trim_px, length - trim_px, 1.0)
+        if length < 1e-9 or len(t) == 0:
+            continue
+        d = (b - a) / length
+        n = np.array([-d[1], d[0]])
+        p = a + t[:, None] * d  # (T, 2)
+        x = p[None, :, 0] + offsets[:, None] * n[0]
+        y = p[None, :, 1] + offsets[:, None] * n[1]
+        gx, gy = grad.sample(x, y)  # (offsets, T)
+        strong = np.abs(gx * n[0] + gy * n[1]) >= threshold
+        out[s] = float(strong.mean(axis=1).max())
     return out
 
 

@@ -18,7 +18,8 @@ from itertools import zip_longest
 import numpy as np
 
 from rovis.segment.boundary import (Evaluation, SegmentConfig, Segmentation, candidate_pool,
-                                   evaluate, finish, open_candidates, roi_area, without_near)
+                                   evaluate, finish, open_candidates, roi_area,
+                                   two_sided_candidates, without_near)
 from rovis.segment.edges import Gradients
 from rovis.segment.quads import Quads, order_corners, quad_overlap
 
@@ -122,6 +123,14 @@ class CascadeController:
                 best, alternatives = with_three_sided_covers(
                     best, alternatives, open_pool, self.cfg.three_sided_support,
                     self.cfg.quads.max_overlap)
+            if self.cfg.two_sided:
+                # beyond the paper: and with two sides unseen, for stereo only (never a
+                # cover of one image)
+                two = without_near(candidate_pool(
+                    [two_sided_candidates(grad, e, self.cfg, area=area, timing=timing)
+                     for e in chosen], self.cfg.pool_size),
+                    Quads.concat([full, open_pool]), self.cfg.quads.duplicate_px)
+                open_pool = Quads.concat([open_pool, two])
         return finish(grad, best, iterations, timing=timing, alternatives=alternatives,
                       pool=full, refine=refine, open_pool=open_pool)
 

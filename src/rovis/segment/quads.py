@@ -246,6 +246,76 @@ def three_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[
     return _distinct(quads, cfg.duplicate_px)[0]
 
 
+def two_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[int, int],
+                    roi_area: float, cfg: QuadConfig = QuadConfig(), *,
+                    max_gap_px: float = 8.0, max_run_px: float = 400.0) -> Quads:
+    """Beyond the paper: cover candidates with two adjacent sides on lines and the other
+    two where those sides' edges end.
+
+    A cover whose far side and one lateral side meet the desk at its own brightness shows
+    only its two other sides (the page block, a shadow): an "L", no U and no 4-cycle. Each
+    corner of two lines (:func:`_arm`) is followed along both lines, each way, until a gap
+    of ``max_gap_px`` (:func:`_run_end`); the two ends and the corner span a parallelogram,
+    the quad. At a book's size the perspective bends its far sides by a few pixels only,
+    which the sub-pixel refinement takes up where they show an edge. The same rules as
+    :func:`candidate_quads` apply to the two seen sides (length, ``min_support``) and to the
+    quad (angles, area, in the image). Looser still than :func:`three_sided_quads`: for
+    stereo to check only (:attr:`rovis.segment.Segmentation.open_pool`).
+
+    Returns
+    -------
+    Quads
+        Sides 1 and 2 are the open ones (``lines`` −1, ``support`` 0); ``n_f`` counts the
+        edge pixels of the two seen sides.
+    """
+    n = len(lines)
+    if n < 2:
+        return Quads.empty()
+    X, T, corner, _ = _corner_graph(lines, profile, image_shape, cfg)
+    a, b = np.nonzero(np.triu(corner, 1))
+    if len(a) == 0:
+        return Quads.empty()
+    trim = cfg.corner_trim_px
+    flat_T = T.ravel()
+    # each line of each corner followed both ways from the corner
+    line = np.concatenate([a, a, b, b])
+    other = np.concatenate([b, b, a, a])
+    sign = np.repeat([1.0, -1.0, 1.0, -1.0], len(a))
+    end, hit = _run_end(profile, line, flat_T[line * n + other], sign, trim, max_gap_px,
+                        max_run_px)
+    ok = (end >= cfg.min_side_px) & (hit >= cfg.min_support * np.maximum(end - trim, 1.0))
+    m = len(a)
+    end, hit, ok, sign = (v.reshape(4, m) for v in (end, hit, ok, sign))
+    # the four ways of an L: (a forward or back) x (b forward or back)
+    ia, ib = np.array([0, 0, 1, 1]), np.array([2, 3, 2, 3])
+    k, w = np.nonzero(ok[ia] & ok[ib])  # (way, corner)
+    if len(k) == 0:
+        return Quads.empty()
+    ra, rb = ia[k], ib[k]
+    la, lb = a[w], b[w]
+    nrm, d = lines.normals, lines.directions
+    x = X[la, lb]
+    end_a = lines.rho[la, None] * nrm[la] + (flat_T[la * n + lb] + sign[ra, w] * end[ra, w])[:, None] * d[la]
+    end_b = lines.rho[lb, None] * nrm[lb] + (flat_T[lb * n + la] + sign[rb, w] * end[rb, w])[:, None] * d[lb]
+    corners = np.stack([x, end_a, end_a + end_b - x, end_b], axis=1)  # sides: a, open, open, b
+    h, wid = image_shape
+    inside = np.all((corners >= 0) & (corners < [wid, h]), axis=(1, 2))
+    area = 0.5 * np.abs(_shoelace(corners))
+    keep = (inside & (end[ra, w] <= cfg.max_side_px) & (end[rb, w] <= cfg.max_side_px)
+            & (area >= cfg.min_area_px) & (area <= cfg.max_area_frac * roi_area)
+            & _convex_with_angles(corners, cfg.min_corner_deg))
+    if not keep.any():
+        return Quads.empty()
+    zero = np.zeros(len(k))
+    support = np.column_stack([hit[ra, w] / np.maximum(end[ra, w] - trim, 1.0), zero, zero,
+                               hit[rb, w] / np.maximum(end[rb, w] - trim, 1.0)])
+    open_side = np.full(len(k), -1)
+    quads = Quads(np.column_stack([la, open_side, open_side, lb])[keep], corners[keep],
+                  np.minimum(support[keep], 1.0), (hit[ra, w] + hit[rb, w])[keep],
+                  np.minimum(lines.votes[la], lines.votes[lb])[keep])
+    return _distinct(quads, cfg.duplicate_px)[0]
+
+
 def _run_end(profile: SupportProfile, line: NDArray[np.intp], t0: NDArray[np.float64],
              sign: NDArray[np.float64], start: float, max_gap: float, most: float,
              ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
