@@ -74,7 +74,7 @@ def bench_triangulation(n_points: int = 1_000_000, *, repeats: int = 7,
 
 PIPELINE_STAGES = ("marker", "undistort", "gradients", "segmentation", "stereo", "pose", "heightmap",
                    "extent")
-SEGMENTATION_STEPS = ("canny", "hough", "quads", "three_sided", "refine", "lsd")  # parts of "segmentation"
+SEGMENTATION_STEPS = ("canny", "hough", "quads", "three_sided", "two_sided", "refine", "lsd")  # parts of "segmentation"
 
 
 @dataclass(frozen=True)

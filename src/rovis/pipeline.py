@@ -558,7 +558,9 @@ class Detector:
         edge, :func:`rovis.segment.boundary.refine_quad`'s ``down``, in one image or
         both). The most edge pixels in both images first, each must pass the pose
         checks; a pair whose left quad holds two or more such pairs that fill it is taken
-        for the union of touching books and gives way to them.
+        for the union of touching books and gives way to them. A pair with two sides
+        unseen in either image (a two-sided candidate) must also show a step along each
+        refined side in both images and have its corners at one height.
         """
         cfg = self.cfg
         overlap = cfg.stereo.transfer_max_overlap
@@ -576,6 +578,34 @@ class Detector:
         if len(pp) == 0:
             return []
         i, j = index["left"][pp.left], index["right"][pp.right]
+        # A candidate with two sides unseen (rovis.segment.quads.two_sided_quads) closes an
+        # L where its two sides' edges end: between two books, or over a paper, that is
+        # often no cover. Each of its refined sides must show a step across it at half
+        # the Canny low threshold, along StereoConfig.two_sided_evidence of its length,
+        # and its corners lie within StereoConfig.two_sided_flatness of one height.
+        evidence = 0.5
+        strength = {cam: CANNY_LOW_RATIO * (segs[cam].T_H or cfg.segment.open_T_H)
+                    for cam in ("left", "right")}
+
+        def two_open(quads: Quads, k: int) -> bool:
+            return bool(np.count_nonzero(quads.lines[k] < 0) >= 2)
+
+        # most two-sided candidates show no step anywhere near their guessed sides: those
+        # are not worth a refinement (a coarse look first: within 3 px, along 30 %)
+        plausible: dict[tuple[str, int], bool] = {}
+
+        def worth(cam: str, k: int) -> bool:
+            if (cam, k) not in plausible:
+                plausible[cam, k] = not two_open(pool[cam], k) or side_evidence(
+                    grads[cam], pool[cam].corners[k], evidence * strength[cam],
+                    reach_px=3.0).min() >= 0.3
+            return plausible[cam, k]
+
+        keep = np.flatnonzero([worth("left", a) and worth("right", b)
+                               for a, b in zip(i.tolist(), j.tolist())])
+        i, j, pp = i[keep], j[keep], pp.take(keep)
+        if len(pp) == 0:
+            return []
         # on busy texture (thousands of pairs of candidates) only those closest to their
         # epipolar segments are refined, which bounds the time
         order = np.sort(np.argsort(pp.error_px, kind="stable")[:cfg.stereo.pool_max_pairs])
@@ -604,17 +634,6 @@ class Detector:
                               for k, s in zip(j[index].tolist(), pp.shift[index].tolist())])
             return left.reshape(-1, 4, 2), right.reshape(-1, 4, 2)
 
-        # A candidate with two sides unseen (rovis.segment.quads.two_sided_quads) closes an
-        # L where its two sides' edges end: between two books, or over a paper, that is
-        # often no cover. Each of its refined sides must show a step across it at half
-        # the Canny low threshold, along StereoConfig.two_sided_evidence of its length.
-        evidence = 0.5
-        strength = {cam: CANNY_LOW_RATIO * (segs[cam].T_H or cfg.segment.open_T_H)
-                    for cam in ("left", "right")}
-
-        def two_open(quads: Quads, k: int) -> bool:
-            return bool(np.count_nonzero(quads.lines[k] < 0) >= 2)
-
         every = np.arange(len(i))
         left, right = refine_pairs(every, (True, True))
         ok = flat(left, right)
@@ -641,14 +660,16 @@ class Detector:
                 continue
             if _is_union(rank, left[keep], area, overlap):
                 continue
-            if (two_open(pool["left"], i[a]) or two_open(pool["right"], j[a])) and min(
-                    side_evidence(grads[cam], q, evidence * strength[cam]).min()
-                    for cam, q in (("left", left[a]), ("right", right[a]))) < cfg.stereo.two_sided_evidence:
-                continue  # two sides guessed: each must show a step, in both images
-            if (two_open(pool["left"], i[a]) or two_open(pool["right"], j[a])) and np.ptp(
-                    geometry.plane_distance(desk_plane, geometry.triangulate_dlt(
-                        rig.Q_L, rig.Q_R, left[a], right[a]))) > cfg.stereo.two_sided_flatness:
-                continue  # ...and its corners one height: a guessed corner is off in depth
+            if two_open(pool["left"], i[a]) or two_open(pool["right"], j[a]):
+                # two sides guessed: each side must show a step in both images, and the
+                # corners lie at one height (a guessed corner is off in depth)
+                step = min(side_evidence(grads[cam], q, evidence * strength[cam]).min()
+                           for cam, q in (("left", left[a]), ("right", right[a])))
+                heights = geometry.plane_distance(
+                    desk_plane, geometry.triangulate_dlt(rig.Q_L, rig.Q_R, left[a], right[a]))
+                if step < cfg.stereo.two_sided_evidence or \
+                        np.ptp(heights) > cfg.stereo.two_sided_flatness:
+                    continue
             quality = float(min(pool["left"].support[i[a]].mean(),
                                 pool["right"].support[j[a]].mean()))
             shift = int(np.argmin(left[a].sum(axis=1)))  # eq. 1 order, kept after refinement

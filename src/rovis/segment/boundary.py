@@ -89,6 +89,12 @@ class SegmentConfig:
         Beyond the paper: a three-sided candidate whose seen sides are all this much
         covered by edge pixels, overlapping no cover, is kept as a cover of the image too
         (:func:`rovis.segment.control.with_three_sided_covers`; above 1: never).
+    two_sided : bool
+        Beyond the paper: at the same evaluations, also offer stereo the candidates with
+        two adjacent sides seen and two unseen (:func:`rovis.segment.quads.two_sided_quads`),
+        never kept as covers of one image (measured: docs/stereo.md, "Two-sided covers").
+    two_sided_size : int
+        Most two-sided candidates kept per image, the most edge pixels first.
     """
 
     n_max: int = 100
@@ -113,6 +119,7 @@ class SegmentConfig:
     three_sided_evaluations: int = 3
     three_sided_support: float = 0.95
     two_sided: bool = True
+    two_sided_size: int = 400
     quads: QuadConfig = field(default_factory=QuadConfig)
 
 
@@ -172,7 +179,9 @@ class Segmentation:
         ``SegmentConfig.three_sided``), corners in eq. 1 order, the most edge pixels
         first, for stereo like :attr:`pool`. Its ``lines`` and ``support`` keep each
         candidate's own cyclic order (side 2, ``lines`` −1 and ``support`` 0, is the open
-        one), not the corners' eq. 1 order.
+        one), not the corners' eq. 1 order. With ``SegmentConfig.two_sided``, followed by
+        the candidates with two sides unseen (sides 1 and 2 open,
+        :func:`two_sided_quads`).
     three_sided : ndarray, shape (K,), bool
         Per cover, whether it is one of the three-sided candidates, kept as a cover
         (``SegmentConfig.three_sided_support``): its fourth side unseen; its ``support``

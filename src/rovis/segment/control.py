@@ -128,7 +128,7 @@ class CascadeController:
                 # cover of one image)
                 two = without_near(candidate_pool(
                     [two_sided_candidates(grad, e, self.cfg, area=area, timing=timing)
-                     for e in chosen], self.cfg.pool_size),
+                     for e in chosen], self.cfg.two_sided_size),
                     Quads.concat([full, open_pool]), self.cfg.quads.duplicate_px)
                 open_pool = Quads.concat([open_pool, two])
         return finish(grad, best, iterations, timing=timing, alternatives=alternatives,
