@@ -233,3 +233,40 @@ def test_side_evidence_tells_a_faint_step_from_none():
     faint[:180] = 172  # the far band 8 grey levels darker than the cover: a faint step
     ev = side_evidence(gradients(np.clip(faint, 0, 255).astype(np.uint8)), order_corners(SLANT), 12.0)
     assert ev[0] > 0.9
+
+
+def laterals_hidden(noise: float = 2.0) -> np.ndarray:
+    """The parallelogram cover again, its two lateral sides against bands of its own
+    brightness and only its far and near sides showing a step; the bands' own edges leave
+    the cover's corners steeply (a shallow one would carry the side's edge run on past the
+    corner, up to the 8 px gap). Drawn 8x supersampled."""
+    S = 8
+    img = np.full((H * S, W * S), 100, np.float32)
+    bands = (np.array([[120.0, 0.0], [212.0, 180.0], [228.0, 330.0], [120.0, 479.0]]),
+             np.array([[452.0, 180.0], [560.0, 0.0], [580.0, 479.0], [468.0, 330.0]]))
+    for poly in (SLANT, *bands):
+        pts = np.rint((poly * S + (S - 1) / 2) * 16).astype(np.int32)
+        cv2.fillPoly(img, [pts], 180, lineType=cv2.LINE_8, shift=4)
+    img = cv2.resize(img, (W, H), interpolation=cv2.INTER_AREA)
+    rng = np.random.default_rng(7)
+    return np.clip(img + rng.normal(0, noise, img.shape), 0, 255).astype(np.uint8)
+
+
+def test_a_cover_showing_its_far_and_near_sides_is_closed_between_their_ends():
+    from rovis.segment.quads import opposite_sided_quads
+    grad, lines, profile = _chain(laterals_hidden())
+    area = roi_area(grad)
+    assert _worst_to(candidate_quads(lines, profile, grad.shape, area).corners, SLANT) > 10.0
+    assert _worst_to(three_sided_quads(lines, profile, grad.shape, area).corners, SLANT) > 10.0
+    two = opposite_sided_quads(lines, profile, grad.shape, area)
+    assert _worst_to(two.corners, SLANT) < 3.0  # px
+    k = int(np.argmin(np.linalg.norm(_canonical(two.corners) - order_corners(SLANT)[None],
+                                     axis=2).max(axis=1)))
+    assert two.lines[k, 1] == two.lines[k, 3] == -1  # sides 1 and 3 are the open ones
+    assert np.all(two.support[k, [0, 2]] >= 0.7)
+    # runs whose ends do not face each other are not joined
+    shifted = laterals_hidden()
+    shifted[320:340, 300:480] = 180  # the near side's edge gone from x = 300 on
+    grad, lines, profile = _chain(shifted)
+    assert _worst_to(opposite_sided_quads(lines, profile, grad.shape, area).corners,
+                     SLANT) > 10.0

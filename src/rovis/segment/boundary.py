@@ -21,7 +21,7 @@ from rovis.segment.lines import (Lines, SupportProfile, hough_lines, intersect, 
                                  refine_segment, support_profile)
 from rovis.segment.quads import (CoverSelection, QuadConfig, Quads, _canonical, _distinct,
                                  candidate_quads, order_corners, three_sided_quads,
-                                 two_sided_quads)
+                                 opposite_sided_quads, two_sided_quads)
 from rovis.segment.quality import PRINTED, quality
 
 
@@ -95,6 +95,9 @@ class SegmentConfig:
         never kept as covers of one image (measured: docs/stereo.md, "Two-sided covers").
     two_sided_size : int
         Most two-sided candidates kept per image, the most edge pixels first.
+    opposite_sided : bool
+        With ``two_sided``: also the candidates with two opposite sides seen, joined where
+        their edges end (:func:`rovis.segment.quads.opposite_sided_quads`).
     """
 
     n_max: int = 100
@@ -120,6 +123,7 @@ class SegmentConfig:
     three_sided_support: float = 0.95
     two_sided: bool = True
     two_sided_size: int = 400
+    opposite_sided: bool = True
     quads: QuadConfig = field(default_factory=QuadConfig)
 
 
@@ -356,13 +360,17 @@ def open_candidates(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
 def two_sided_candidates(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
                          area: float | None = None,
                          timing: dict[str, float] | None = None) -> Quads:
-    """The two-sided candidates (:func:`two_sided_quads`) of one evaluation, from the lines
+    """The two-sided candidates (:func:`two_sided_quads`, and with
+    ``cfg.opposite_sided`` :func:`opposite_sided_quads`) of one evaluation, from the lines
     its candidates were formed from (``timing``: under ``"two_sided"``)."""
     if ev.all_lines is None or ev.profile is None or len(ev.all_lines) < 2:
         return Quads.empty()
     clock = time.perf_counter()
     area = roi_area(grad) if area is None else area
     quads = two_sided_quads(ev.all_lines, ev.profile, grad.shape, area, cfg.quads)
+    if cfg.opposite_sided:
+        quads = Quads.concat([quads, opposite_sided_quads(ev.all_lines, ev.profile, grad.shape,
+                                                          area, cfg.quads)])
     _lap(timing, "two_sided", clock)
     return quads
 

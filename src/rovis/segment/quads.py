@@ -316,6 +316,105 @@ def two_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     return _distinct(quads, cfg.duplicate_px)[0]
 
 
+def opposite_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[int, int],
+                         roi_area: float, cfg: QuadConfig = QuadConfig(), *,
+                         max_gap_px: float = 8.0, max_shift: float = 0.15) -> Quads:
+    """Beyond the paper: cover candidates with two opposite sides on lines and the other
+    two joining where those sides' edges end.
+
+    A cover whose two lateral sides meet a background of its own brightness shows only
+    its far and near sides. Each line's edge pixels are cut into runs at gaps of
+    ``max_gap_px``; two runs on near-parallel lines (:func:`_corner_graph`'s opposite
+    sides) whose ends face each other, within ``max_shift`` of the runs' length along the
+    lines, are joined end to end. The same rules as :func:`candidate_quads` apply to the
+    two seen sides (length, ``min_support``) and to the quad (angles, area, in the image).
+    For stereo to check only, like :func:`two_sided_quads`.
+
+    Returns
+    -------
+    Quads
+        Sides 1 and 3 are the open ones (``lines`` −1, ``support`` 0); ``n_f`` counts the
+        edge pixels of the two seen sides.
+    """
+    n = len(lines)
+    if n < 2:
+        return Quads.empty()
+    _, _, _, par = _corner_graph(lines, profile, image_shape, cfg)
+    pi, pk = np.nonzero(np.triu(par, 1))
+    if len(pi) == 0:
+        return Quads.empty()
+    # each line's runs of edge pixels: (line, first sample, one past the last, hits)
+    g = max(int(round(max_gap_px)), 1)
+    hit = np.diff(profile.cum, axis=1) > 0  # (N, L)
+    r_line, r_lo, r_hi, r_hits = [], [], [], []
+    for i in np.unique(np.concatenate([pi, pk])).tolist():
+        at = np.flatnonzero(hit[i])
+        if len(at) == 0:
+            continue
+        cut = np.flatnonzero(np.diff(at) > g)
+        lo, hi = at[np.r_[0, cut + 1]], at[np.r_[cut, len(at) - 1]] + 1
+        hits = np.diff(np.r_[0, cut + 1, len(at)])
+        ok = ((hi - lo) >= cfg.min_side_px) & (hits >= cfg.min_support * (hi - lo))
+        r_line += [i] * int(ok.sum())
+        r_lo += lo[ok].tolist()
+        r_hi += hi[ok].tolist()
+        r_hits += hits[ok].tolist()
+    if not r_line:
+        return Quads.empty()
+    r_line_a = np.asarray(r_line, np.intp)
+    count = np.bincount(r_line_a, minlength=n)
+    first = np.cumsum(count) - count
+    combos = count[pi] * count[pk]
+    pair = np.repeat(np.arange(len(pi)), combos)
+    if len(pair) == 0:
+        return Quads.empty()
+    m = np.arange(len(pair)) - np.repeat(np.cumsum(combos) - combos, combos)
+    ra = first[pi[pair]] + m // count[pk[pair]]
+    rb = first[pk[pair]] + m % count[pk[pair]]
+    lo_s, hi_s = np.asarray(r_lo, np.float64), np.asarray(r_hi, np.float64)
+    la, lb = r_line_a[ra], r_line_a[rb]
+    nrm, d = lines.normals, lines.directions
+    ta0, ta1 = profile.t0[la] + lo_s[ra], profile.t0[la] + hi_s[ra]
+    tb0, tb1 = profile.t0[lb] + lo_s[rb], profile.t0[lb] + hi_s[rb]
+    a0 = lines.rho[la, None] * nrm[la] + ta0[:, None] * d[la]
+    a1 = lines.rho[la, None] * nrm[la] + ta1[:, None] * d[la]
+    b0 = lines.rho[lb, None] * nrm[lb] + tb0[:, None] * d[lb]
+    b1 = lines.rho[lb, None] * nrm[lb] + tb1[:, None] * d[lb]
+    # line b's ends along line a: its direction may run either way
+    s0, s1 = np.sum(b0 * d[la], axis=1), np.sum(b1 * d[la], axis=1)
+    flip = s0 > s1
+    b0, b1 = np.where(flip[:, None], b1, b0), np.where(flip[:, None], b0, b1)
+    s0, s1 = np.minimum(s0, s1), np.maximum(s0, s1)
+    t_a0, t_a1 = np.sum(a0 * d[la], axis=1), np.sum(a1 * d[la], axis=1)
+    length = 0.5 * ((t_a1 - t_a0) + (s1 - s0))
+    ok = (np.abs(s0 - t_a0) <= max_shift * length) & (np.abs(s1 - t_a1) <= max_shift * length)
+    if not ok.any():
+        return Quads.empty()
+    corners = np.stack([a0, a1, b1, b0], axis=1)[ok]  # sides: a, open, b, open
+    lat = np.hypot(*(corners[:, 2] - corners[:, 1]).T), np.hypot(*(corners[:, 0] - corners[:, 3]).T)
+    h, w = image_shape
+    inside = np.all((corners >= 0) & (corners < [w, h]), axis=(1, 2))
+    area = 0.5 * np.abs(_shoelace(corners))
+    side_a, side_b = (t_a1 - t_a0)[ok], (s1 - s0)[ok]
+    keep = (inside & (np.minimum(lat[0], lat[1]) >= cfg.min_side_px)
+            & (np.maximum(lat[0], lat[1]) <= cfg.max_side_px)
+            & (np.maximum(side_a, side_b) <= cfg.max_side_px)
+            & (area >= cfg.min_area_px) & (area <= cfg.max_area_frac * roi_area)
+            & _convex_with_angles(corners, cfg.min_corner_deg))
+    if not keep.any():
+        return Quads.empty()
+    hits_a = np.asarray(r_hits, np.float64)[ra][ok]
+    hits_b = np.asarray(r_hits, np.float64)[rb][ok]
+    zero = np.zeros(len(hits_a))
+    support = np.column_stack([hits_a / np.maximum(side_a, 1.0), zero,
+                               hits_b / np.maximum(side_b, 1.0), zero])
+    open_side = np.full(len(hits_a), -1)
+    quads = Quads(np.column_stack([la[ok], open_side, lb[ok], open_side])[keep], corners[keep],
+                  np.minimum(support[keep], 1.0), (hits_a + hits_b)[keep],
+                  np.minimum(lines.votes[la[ok]], lines.votes[lb[ok]])[keep])
+    return _distinct(quads, cfg.duplicate_px)[0]
+
+
 def _run_end(profile: SupportProfile, line: NDArray[np.intp], t0: NDArray[np.float64],
              sign: NDArray[np.float64], start: float, max_gap: float, most: float,
              ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
