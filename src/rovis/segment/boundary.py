@@ -19,9 +19,9 @@ from numpy.typing import NDArray
 from rovis.segment.edges import Gradients, canny
 from rovis.segment.lines import (Lines, SupportProfile, hough_lines, intersect, refine_lines,
                                  refine_segment, support_profile)
-from rovis.segment.quads import (CoverSelection, QuadConfig, Quads, _canonical, _distinct,
-                                 candidate_quads, order_corners, three_sided_quads,
-                                 opposite_sided_quads, two_sided_quads)
+from rovis.segment.quads import (CoverSelection, QuadConfig, Quads, _canonical, _corner_graph,
+                                 _distinct, candidate_quads, opposite_sided_quads, order_corners,
+                                 three_sided_quads, two_sided_quads)
 from rovis.segment.quality import PRINTED, quality
 
 
@@ -367,10 +367,11 @@ def two_sided_candidates(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
         return Quads.empty()
     clock = time.perf_counter()
     area = roi_area(grad) if area is None else area
-    quads = two_sided_quads(ev.all_lines, ev.profile, grad.shape, area, cfg.quads)
+    graph = _corner_graph(ev.all_lines, ev.profile, grad.shape, cfg.quads)  # for both
+    quads = two_sided_quads(ev.all_lines, ev.profile, grad.shape, area, cfg.quads, graph=graph)
     if cfg.opposite_sided:
         quads = Quads.concat([quads, opposite_sided_quads(ev.all_lines, ev.profile, grad.shape,
-                                                          area, cfg.quads)])
+                                                          area, cfg.quads, graph=graph)])
     _lap(timing, "two_sided", clock)
     return quads
 

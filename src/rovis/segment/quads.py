@@ -248,7 +248,9 @@ def three_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[
 
 def two_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[int, int],
                     roi_area: float, cfg: QuadConfig = QuadConfig(), *,
-                    max_gap_px: float = 8.0, max_run_px: float = 400.0) -> Quads:
+                    max_gap_px: float = 8.0, max_run_px: float = 400.0,
+                    graph: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
+                                 NDArray[np.bool_]] | None = None) -> Quads:
     """Beyond the paper: cover candidates with two adjacent sides on lines and the other
     two where those sides' edges end.
 
@@ -260,7 +262,8 @@ def two_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     which the sub-pixel refinement takes up where they show an edge. The same rules as
     :func:`candidate_quads` apply to the two seen sides (length, ``min_support``) and to the
     quad (angles, area, in the image). Looser still than :func:`three_sided_quads`: for
-    stereo to check only (:attr:`rovis.segment.Segmentation.open_pool`).
+    stereo to check only (:attr:`rovis.segment.Segmentation.open_pool`). ``graph``:
+    :func:`_corner_graph`'s output for these lines, if already computed.
 
     Returns
     -------
@@ -271,7 +274,8 @@ def two_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     n = len(lines)
     if n < 2:
         return Quads.empty()
-    X, T, corner, _ = _corner_graph(lines, profile, image_shape, cfg)
+    X, T, corner, _ = graph if graph is not None else _corner_graph(lines, profile,
+                                                                     image_shape, cfg)
     a, b = np.nonzero(np.triu(corner, 1))
     if len(a) == 0:
         return Quads.empty()
@@ -318,7 +322,10 @@ def two_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
 
 def opposite_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[int, int],
                          roi_area: float, cfg: QuadConfig = QuadConfig(), *,
-                         max_gap_px: float = 8.0, max_shift: float = 0.15) -> Quads:
+                         max_gap_px: float = 8.0, max_shift: float = 0.15,
+                         graph: tuple[NDArray[np.float64], NDArray[np.float64],
+                                      NDArray[np.bool_], NDArray[np.bool_]] | None = None,
+                         ) -> Quads:
     """Beyond the paper: cover candidates with two opposite sides on lines and the other
     two joining where those sides' edges end.
 
@@ -328,7 +335,7 @@ def opposite_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tup
     sides) whose ends face each other, within ``max_shift`` of the runs' length along the
     lines, are joined end to end. The same rules as :func:`candidate_quads` apply to the
     two seen sides (length, ``min_support``) and to the quad (angles, area, in the image).
-    For stereo to check only, like :func:`two_sided_quads`.
+    For stereo to check only, like :func:`two_sided_quads` (``graph``: as there).
 
     Returns
     -------
@@ -339,29 +346,29 @@ def opposite_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tup
     n = len(lines)
     if n < 2:
         return Quads.empty()
-    _, _, _, par = _corner_graph(lines, profile, image_shape, cfg)
+    _, _, _, par = graph if graph is not None else _corner_graph(lines, profile,
+                                                                  image_shape, cfg)
     pi, pk = np.nonzero(np.triu(par, 1))
     if len(pi) == 0:
         return Quads.empty()
-    # each line's runs of edge pixels: (line, first sample, one past the last, hits)
+    # each line's runs of edge pixels, all lines at once: a run starts at a hit with none
+    # in the g samples before it and ends at one with none in the g after it
     g = max(int(round(max_gap_px)), 1)
-    hit = np.diff(profile.cum, axis=1) > 0  # (N, L)
-    r_line, r_lo, r_hi, r_hits = [], [], [], []
-    for i in np.unique(np.concatenate([pi, pk])).tolist():
-        at = np.flatnonzero(hit[i])
-        if len(at) == 0:
-            continue
-        cut = np.flatnonzero(np.diff(at) > g)
-        lo, hi = at[np.r_[0, cut + 1]], at[np.r_[cut, len(at) - 1]] + 1
-        hits = np.diff(np.r_[0, cut + 1, len(at)])
-        ok = ((hi - lo) >= cfg.min_side_px) & (hits >= cfg.min_support * (hi - lo))
-        r_line += [i] * int(ok.sum())
-        r_lo += lo[ok].tolist()
-        r_hi += hi[ok].tolist()
-        r_hits += hits[ok].tolist()
-    if not r_line:
+    cum = profile.cum  # (N, L + 1): hits before each sample
+    n_samples = cum.shape[1] - 1
+    k = np.arange(n_samples)
+    hit = cum[:, 1:] > cum[:, :-1]
+    behind = cum[:, k] - cum[:, np.maximum(k - g, 0)]
+    ahead = cum[:, np.minimum(k + g + 1, n_samples)] - cum[:, k + 1]
+    r_line, r_lo = np.nonzero(hit & (behind == 0))  # by line, then position: in step
+    _, r_end = np.nonzero(hit & (ahead == 0))
+    r_hi = r_end + 1
+    r_hits = cum[r_line, r_hi] - cum[r_line, r_lo]
+    ok = ((r_hi - r_lo) >= cfg.min_side_px) & (r_hits >= cfg.min_support * (r_hi - r_lo))
+    r_line, r_lo, r_hi, r_hits = r_line[ok], r_lo[ok], r_hi[ok], r_hits[ok]
+    if len(r_line) == 0:
         return Quads.empty()
-    r_line_a = np.asarray(r_line, np.intp)
+    r_line_a = r_line.astype(np.intp)
     count = np.bincount(r_line_a, minlength=n)
     first = np.cumsum(count) - count
     combos = count[pi] * count[pk]
