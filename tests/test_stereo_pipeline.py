@@ -345,15 +345,20 @@ def test_a_cover_is_found_in_the_other_image_with_one_side_along_the_epipolar_li
     assert checked["along"] >= 1 and checked["across"] >= 1
 
 
+def _table2_scene(i: int):
+    """Scene ``i`` of ``rovis synth --protocol table2 --seed 1``, rendered as it renders it."""
+    from rovis.synth.dataset import dataset_scenes
+
+    sc = next(s for k, s in dataset_scenes("table2", i + 1, seed=1) if k == i)
+    return sc, render(sc, np.random.default_rng([1, 9, i]))
+
+
 def test_a_cover_tilted_by_one_images_cover_edge_step_is_refit_without_it():
     # Table II's scene 36 (rovis synth --protocol table2 --seed 1): a light cover on a
     # white page-block strip ~1 px wide. The right image's inward search for the cover
     # edge steps onto a faint inner edge, the left's stays on the strip's foot: 2-3 px of
     # disparity tilt the cover. Refined without that search in one image, the pair is flat.
-    from rovis.synth.dataset import dataset_scenes
-
-    sc = next(s for i, s in dataset_scenes("table2", 37, seed=1) if i == 36)
-    r = render(sc, np.random.default_rng([1, 9, 36]))  # what rovis synth renders there
+    sc, r = _table2_scene(36)
     book = r.truth["books"][2]
     assert book["cover"] == "light"
 
@@ -375,10 +380,8 @@ def test_a_plain_cover_showing_two_sides_is_found_by_stereo_among_two_sided_cand
     # 165 mm cover, 51 mm high, whose far and one lateral side meet a background of its own
     # brightness: two sides seen, no quad of three or four in either image.
     from rovis.segment import SegmentConfig
-    from rovis.synth.dataset import dataset_scenes
 
-    sc = next(s for i, s in dataset_scenes("table2", 19, seed=1) if i == 18)
-    r = render(sc, np.random.default_rng([1, 9, 18]))  # what rovis synth renders there
+    sc, r = _table2_scene(18)
     book = r.truth["books"][3]
     assert book["cover"] == "plain"
 

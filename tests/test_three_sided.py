@@ -168,27 +168,41 @@ def test_a_segmented_cover_with_a_side_unseen_must_stand_as_high_as_any_found_ot
 SLANT = np.array([[212.0, 180.0], [452.0, 180.0], [468.0, 330.0], [228.0, 330.0]])  # px
 
 
+def _drawn(polys, seed: int, noise: float, *, top_rows: int = 0) -> np.ndarray:
+    """Polygons (px) of the cover's brightness (180) on the desk (100), and the first
+    ``top_rows`` rows too, drawn 8x supersampled, with seeded sensor noise."""
+    S = 8
+    img = np.full((H * S, W * S), 100, np.float32)
+    if top_rows:
+        img[:top_rows * S + S // 2] = 180
+    for poly in polys:
+        pts = np.rint((poly * S + (S - 1) / 2) * 16).astype(np.int32)
+        cv2.fillPoly(img, [pts], 180, lineType=cv2.LINE_8, shift=4)
+    img = cv2.resize(img, (W, H), interpolation=cv2.INTER_AREA)
+    rng = np.random.default_rng(seed)
+    return np.clip(img + rng.normal(0, noise, img.shape), 0, 255).astype(np.uint8)
+
+
 def far_and_left_sides_hidden(noise: float = 2.0) -> np.ndarray:
     """A light cover (180) on a grey desk (100), a parallelogram, its far and left sides
     against bands of its own brightness: only its right and near sides show a step (an
     "L"). The left band's lower edge is not in line with the near side, so that side's
-    edge ends at the cover's corner. Drawn 8x supersampled."""
-    S = 8
-    img = np.full((H * S, W * S), 100, np.float32)
-    img[:180 * S + S // 2] = 180
-    for poly in (SLANT, np.array([[0.0, 180.0], [212.0, 180.0], [228.0, 330.0], [0.0, 200.0]])):
-        pts = np.rint((poly * S + (S - 1) / 2) * 16).astype(np.int32)
-        cv2.fillPoly(img, [pts], 180, lineType=cv2.LINE_8, shift=4)
-    img = cv2.resize(img, (W, H), interpolation=cv2.INTER_AREA)
-    rng = np.random.default_rng(5)
-    return np.clip(img + rng.normal(0, noise, img.shape), 0, 255).astype(np.uint8)
+    edge ends at the cover's corner."""
+    band = np.array([[0.0, 180.0], [212.0, 180.0], [228.0, 330.0], [0.0, 200.0]])
+    return _drawn((SLANT, band), 5, noise, top_rows=180)
+
+
+def _nearest(quads: np.ndarray, truth: np.ndarray) -> tuple[float, int]:
+    """The worst corner error (px) of the quad nearest ``truth``, and its index (inf, -1
+    if none)."""
+    if len(quads) == 0:
+        return np.inf, -1
+    err = np.linalg.norm(_canonical(quads) - order_corners(truth)[None], axis=2).max(axis=1)
+    return float(err.min()), int(np.argmin(err))
 
 
 def _worst_to(quads: np.ndarray, truth: np.ndarray) -> float:
-    if len(quads) == 0:
-        return np.inf
-    return float(np.linalg.norm(_canonical(quads) - order_corners(truth)[None],
-                                axis=2).max(axis=1).min())
+    return _nearest(quads, truth)[0]
 
 
 def test_a_cover_showing_two_sides_is_closed_where_their_edges_end():
@@ -198,9 +212,8 @@ def test_a_cover_showing_two_sides_is_closed_where_their_edges_end():
     assert _worst_to(candidate_quads(lines, profile, grad.shape, area).corners, SLANT) > 10.0
     assert _worst_to(three_sided_quads(lines, profile, grad.shape, area).corners, SLANT) > 10.0
     two = two_sided_quads(lines, profile, grad.shape, area)
-    assert _worst_to(two.corners, SLANT) < 3.0  # px
-    k = int(np.argmin(np.linalg.norm(_canonical(two.corners) - order_corners(SLANT)[None],
-                                     axis=2).max(axis=1)))
+    err, k = _nearest(two.corners, SLANT)
+    assert err < 3.0  # px
     assert two.lines[k, 1] == two.lines[k, 2] == -1  # sides 1 and 2 are the open ones
     assert np.all(two.support[k, [0, 3]] >= 0.7) and np.all(two.support[k, [1, 2]] == 0.0)
 
@@ -239,17 +252,10 @@ def laterals_hidden(noise: float = 2.0) -> np.ndarray:
     """The parallelogram cover again, its two lateral sides against bands of its own
     brightness and only its far and near sides showing a step; the bands' own edges leave
     the cover's corners steeply (a shallow one would carry the side's edge run on past the
-    corner, up to the 8 px gap). Drawn 8x supersampled."""
-    S = 8
-    img = np.full((H * S, W * S), 100, np.float32)
+    corner, up to the 8 px gap)."""
     bands = (np.array([[120.0, 0.0], [212.0, 180.0], [228.0, 330.0], [120.0, 479.0]]),
              np.array([[452.0, 180.0], [560.0, 0.0], [580.0, 479.0], [468.0, 330.0]]))
-    for poly in (SLANT, *bands):
-        pts = np.rint((poly * S + (S - 1) / 2) * 16).astype(np.int32)
-        cv2.fillPoly(img, [pts], 180, lineType=cv2.LINE_8, shift=4)
-    img = cv2.resize(img, (W, H), interpolation=cv2.INTER_AREA)
-    rng = np.random.default_rng(7)
-    return np.clip(img + rng.normal(0, noise, img.shape), 0, 255).astype(np.uint8)
+    return _drawn((SLANT, *bands), 7, noise)
 
 
 def test_a_cover_showing_its_far_and_near_sides_is_closed_between_their_ends():
@@ -259,9 +265,8 @@ def test_a_cover_showing_its_far_and_near_sides_is_closed_between_their_ends():
     assert _worst_to(candidate_quads(lines, profile, grad.shape, area).corners, SLANT) > 10.0
     assert _worst_to(three_sided_quads(lines, profile, grad.shape, area).corners, SLANT) > 10.0
     two = opposite_sided_quads(lines, profile, grad.shape, area)
-    assert _worst_to(two.corners, SLANT) < 3.0  # px
-    k = int(np.argmin(np.linalg.norm(_canonical(two.corners) - order_corners(SLANT)[None],
-                                     axis=2).max(axis=1)))
+    err, k = _nearest(two.corners, SLANT)
+    assert err < 3.0  # px
     assert two.lines[k, 1] == two.lines[k, 3] == -1  # sides 1 and 3 are the open ones
     assert np.all(two.support[k, [0, 2]] >= 0.7)
     # runs whose ends do not face each other are not joined

@@ -19,6 +19,11 @@ from scipy.spatial import cKDTree
 from rovis.segment.lines import Lines, SupportProfile
 
 
+# _corner_graph's output: intersections X (N, N, 2), positions T (N, N), corner and
+# opposite-side pairs (N, N) each
+CornerGraph = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_]]
+
+
 @dataclass(frozen=True)
 class QuadConfig:
     """What counts as a book cover in the image (pixels, degrees)."""
@@ -249,8 +254,7 @@ def three_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[
 def two_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[int, int],
                     roi_area: float, cfg: QuadConfig = QuadConfig(), *,
                     max_gap_px: float = 8.0, max_run_px: float = 400.0,
-                    graph: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
-                                 NDArray[np.bool_]] | None = None) -> Quads:
+                    graph: CornerGraph | None = None) -> Quads:
     """Beyond the paper: cover candidates with two adjacent sides on lines and the other
     two where those sides' edges end.
 
@@ -323,9 +327,7 @@ def two_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
 def opposite_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[int, int],
                          roi_area: float, cfg: QuadConfig = QuadConfig(), *,
                          max_gap_px: float = 8.0, max_shift: float = 0.15,
-                         graph: tuple[NDArray[np.float64], NDArray[np.float64],
-                                      NDArray[np.bool_], NDArray[np.bool_]] | None = None,
-                         ) -> Quads:
+                         graph: CornerGraph | None = None) -> Quads:
     """Beyond the paper: cover candidates with two opposite sides on lines and the other
     two joining where those sides' edges end.
 
@@ -462,8 +464,7 @@ def _run_end(profile: SupportProfile, line: NDArray[np.intp], t0: NDArray[np.flo
 
 
 def _corner_graph(lines: Lines, profile: SupportProfile, image_shape: tuple[int, int],
-                  cfg: QuadConfig) -> tuple[NDArray[np.float64], NDArray[np.float64],
-                                            NDArray[np.bool_], NDArray[np.bool_]]:
+                  cfg: QuadConfig) -> CornerGraph:
     """The lines' intersections X (N, N, 2) and positions T (N, N) along each line, which
     pairs of lines make a corner (N, N: an L-junction, :func:`_arm`), and which pairs could
     be a cover's opposite sides (N, N: near-parallel, a plausible side length apart)."""
