@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from rovis import extent, geometry
-from rovis.extent import ExtentConfig, fit_pair_extent
+from rovis.extent import ExtentConfig, complete_open, fit_pair_extent
 from rovis.pipeline import DetectConfig, Detector, Pair
 from rovis.segment import SegmentConfig, gradients
 from rovis.segment.edges import CANNY_LOW_RATIO
@@ -292,3 +292,74 @@ def test_a_cover_found_otherwise_is_not_grown_over_a_segmented_one(monkeypatch):
             np.testing.assert_array_equal(out[1][0].left, b)
         else:  # the segmented cover, moved, in place of the other
             np.testing.assert_array_equal(out[0][0].left, union)
+
+
+# -- completing a candidate with sides unseen (complete_open) -------------------------------
+
+
+def _complete(P, guess_left, guess_right, unseen, lone_book, **kw):
+    _, Q, grads, desk, _ = lone_book
+    strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
+    seen = np.ones(4, bool)
+    seen[list(unseen)] = False
+    corners = {"left": geometry.project(Q["left"], guess_left),
+               "right": geometry.project(Q["right"], guess_right)}
+    return complete_open(corners, {"left": seen, "right": seen}, Q, grads,
+                         {"left": strength, "right": strength}, desk, **kw)
+
+
+def _sizes(P):
+    side = np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1)
+    return np.array([side[0] + side[2], side[1] + side[3]]) / 2
+
+
+@pytest.fixture(scope="module")
+def refined_whole(lone_book):
+    """Worst corner error (m) of the lone book refined with all four sides seen, both
+    images, triangulated: what segmentation gives when nothing is hidden."""
+    from rovis.segment.boundary import refine_quad
+    P, Q, grads, _, _ = lone_book
+    px = {cam: refine_quad(grads[cam], geometry.project(Q[cam], P)) for cam in Q}
+    X = geometry.triangulate_dlt(Q["left"], Q["right"], px["left"], px["right"])
+    return float(np.linalg.norm(X - P, axis=1).max())
+
+
+@pytest.mark.parametrize("unseen", [(0,), (1,), (2,), (3,), (0, 1), (1, 2), (2, 3), (3, 0),
+                                    (0, 2), (1, 3)])
+def test_unseen_sides_are_placed_in_3d_where_both_images_show_an_edge(lone_book, refined_whole,
+                                                                      unseen):
+    # each image guessed the unseen sides a centimetre or so off, differently: refined in
+    # each image alone they would make no flat cover. Placed in 3D from the seen sides,
+    # the cover is as good as with every side seen.
+    P = lone_book[0]
+    left, right = P, P
+    for s, (dl, dr) in zip(unseen, ((0.012, -0.008), (-0.010, 0.015))):
+        left, right = _side_moved(left, s, dl), _side_moved(right, s, dr)
+    got = _complete(P, left, right, unseen, lone_book)
+    assert got is not None
+    worst = float(np.linalg.norm(got - P, axis=1).max())
+    assert worst < refined_whole + 0.002  # m
+    assert worst < 0.012  # m
+    np.testing.assert_allclose(_sizes(got), _sizes(P), atol=0.004)  # m
+    # a rectangle parallel to the desk
+    assert np.ptp(got[:, 2]) < 1e-9
+
+
+def test_no_edge_where_a_side_is_guessed_gives_no_cover(lone_book):
+    P, Q, grads, desk, _ = lone_book
+    # the far side guessed 6 cm out, on bare desk: nothing within the search shows a step
+    far = _side_moved(P, 3, 0.06)
+    assert _complete(P, far, far, (3,), lone_book) is None
+    # a featureless image: no side to fit, no edge anywhere
+    blank = {cam: gradients(np.full(grads[cam].shape, 120, np.uint8)) for cam in grads}
+    strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
+    seen = np.array([True, True, True, False])
+    corners = {cam: geometry.project(Q[cam], P) for cam in Q}
+    assert complete_open(corners, {"left": seen, "right": seen}, Q, blank,
+                         {"left": strength, "right": strength}, desk) is None
+    # nothing to complete: every side seen, or fewer than two
+    assert _complete(P, P, P, (), lone_book) is None
+    assert _complete(P, P, P, (0, 1, 2), lone_book) is None
+    # a height outside the range asked for
+    assert _complete(P, _side_moved(P, 2, 0.01), P, (2,), lone_book,
+                     height_range=(0.03, 0.10)) is None

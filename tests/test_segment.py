@@ -357,6 +357,21 @@ def test_refining_both_ways_at_once_gives_each_way_s_corners():
         np.testing.assert_array_equal(plain, refine_quad(grad, quad, down=(0.0, 0.0)))
 
 
+def test_each_side_refit_is_the_line_through_the_refined_corners():
+    from rovis.segment.boundary import refine_quad, refine_sides
+    img, truth = drawn_scene()
+    grad = gradients(img)
+    for quad in truth + np.array([[1.5, -1.0], [-1.0, 2.0], [0.5, 1.5], [2.0, 0.5]]):
+        corners, sides = refine_quad(grad, quad), refine_sides(grad, quad)
+        for s, fit in enumerate(sides):
+            assert fit is not None
+            p, d = fit
+            n = np.array([-d[1], d[0]])
+            assert abs(np.linalg.norm(d) - 1.0) < 1e-9
+            for c in (s, (s + 1) % 4):  # on the line, to rounding
+                assert abs((corners[c] - p) @ n) < 1e-6  # px
+
+
 def _edge_image(theta_deg: float, rho: float, shape=(600, 800), s: int = 4) -> np.ndarray:
     """Bright where x cos θ + y sin θ > ρ (pixel centres at integers), 4x supersampled."""
     h, w = shape

@@ -280,10 +280,11 @@ def test_colour_and_16_bit_input_are_converted(scene):
 
 def test_dropped_pairs_are_kept_with_the_check_they_failed(scene):
     # no tilt allowed: every pair fails the tilt test, and the result says so (the height
-    # map's covers, laid flat on the plane their print gives, would pass it: off here)
+    # map's covers, laid flat on the plane their print gives, and the completed candidates,
+    # built parallel to the desk, would pass it: off here)
     sc, r = scene
-    result = Detector(sc.rig, with_settings(DetectConfig(), ["max_tilt_deg=0",
-                                                             "heightmap.enabled=false"])).detect(
+    result = Detector(sc.rig, with_settings(DetectConfig(), [
+        "max_tilt_deg=0", "heightmap.enabled=false", "complete.enabled=false"])).detect(
         r.left, r.right)
     assert sorted(result.covers) == ["left", "right"]
     assert all(q.ndim == 3 and q.shape[1:] == (4, 2) for q in result.covers.values())
@@ -371,8 +372,8 @@ def test_a_cover_tilted_by_one_images_cover_edge_step_is_refit_without_it():
     assert np.linalg.norm(o.pose.center - book["center"]) < 0.01  # m
     assert abs(o.pose.size[2] - book["size"][2]) < 0.004  # m: the height
     np.testing.assert_allclose(sorted(o.pose.size[:2]), sorted(book["size"][:2]), atol=0.01)
-    # the retry is what finds it
-    assert np.linalg.norm(nearest(False).pose.center - book["center"]) > 0.05
+    # the retry is what finds it (without it, at most a cover centimetres off)
+    assert np.linalg.norm(nearest(False).pose.center - book["center"]) > 0.02
 
 
 def test_a_plain_cover_showing_two_sides_is_found_by_stereo_among_two_sided_candidates():

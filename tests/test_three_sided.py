@@ -89,6 +89,32 @@ def test_the_closed_loop_offers_them_to_stereo_in_its_open_pool():
     assert len(off.open_pool) == 0
 
 
+def test_the_pools_sides_follow_their_corners_put_in_eq_1_order():
+    # the open side is still the one with no line once the corners are reordered: the far
+    # side (y = 180), whatever index it now has
+    grad = gradients(far_side_hidden())
+    pool = CascadeController(SegmentConfig(three_sided_support=2.0),
+                             warm_start=False).segment(grad).open_pool
+    k = int(np.argmin(np.linalg.norm(pool.corners - order_corners(COVER)[None],
+                                     axis=2).max(axis=1)))
+    q, unseen = pool.corners[k], np.flatnonzero(pool.lines[k] < 0)
+    assert len(unseen) == 1 and pool.support[k, unseen[0]] == 0.0
+    s = int(unseen[0])
+    np.testing.assert_allclose(0.5 * (q[s] + q[(s + 1) % 4]), [332.0, 180.0], atol=3.0)  # px
+    from rovis.segment.quads import Quads, canonical_quads
+    # reversed and rotated: each side keeps its line and support
+    c = COVER[None, [2, 1, 0, 3]]  # corners 2, 1, 0, 3: its sides are the original 1, 0, 3, 2
+    got = canonical_quads(Quads(np.array([[11, 10, 13, 12]]), c, np.array([[1.0, 0.0, 3.0, 2.0]]),
+                                np.ones(1), np.ones(1, np.int64)))
+    np.testing.assert_array_equal(got.corners[0], order_corners(COVER))
+    for side in range(4):  # the original side s runs from COVER[s] to COVER[s + 1]
+        a, b = got.corners[0, side], got.corners[0, (side + 1) % 4]
+        original = next(t for t in range(4) if {tuple(COVER[t]), tuple(COVER[(t + 1) % 4])}
+                        == {tuple(a), tuple(b)})
+        assert got.lines[0, side] == 10 + original
+        assert got.support[0, side] == original
+
+
 def test_a_run_of_edge_pixels_ends_at_its_first_long_gap_both_ways():
     from rovis.segment.lines import SupportProfile
     from rovis.segment.quads import _run_end

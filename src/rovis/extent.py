@@ -43,7 +43,9 @@ from numpy.typing import NDArray
 
 from rovis import geometry
 from rovis.segment.edges import Gradients
-from rovis.segment.lines import refine_segment
+from rovis.segment.boundary import refine_sides
+from rovis.segment.lines import intersect, refine_segment
+from rovis.sweep import _plane_frame, on_plane
 
 
 @dataclass(frozen=True)
@@ -415,3 +417,229 @@ def _edge_height(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64
 
 def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
     return v / max(float(np.linalg.norm(v)), 1e-12)
+
+
+def _line_height(fits: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]],
+                 a: NDArray[np.float64], b: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
+                 up: NDArray[np.float64], px_sigma: float = 0.1) -> tuple[float, float]:
+    """Height (metres, relative to the midpoint of ``a``-``b``) of the 3D line both images'
+    fitted lines ``fits`` (point, direction) back-project to, with its standard deviation
+    for a ``px_sigma`` error of each fit (inf: along the epipolar lines)."""
+    m = 0.5 * (a + b)
+    n = np.cross(up, _unit(b - a))
+    rows, rhs = [], []
+    for cam in ("left", "right"):
+        p, d = fits[cam]
+        line = np.array([-d[1], d[0], d[1] * p[0] - d[0] * p[1]])
+        q = line @ Q[cam]
+        w = float(Q[cam][2, :3] @ m + Q[cam][2, 3])
+        rows.append([q[:3] @ n / w, q[:3] @ up / w])
+        rhs.append(-(q[:3] @ m + q[3]) / w)
+    A = np.array(rows)
+    if abs(np.linalg.det(A)) < 1e-12:
+        return 0.0, np.inf
+    inv = np.linalg.inv(A)
+    return float((inv @ np.array(rhs))[1]), float(px_sigma * np.linalg.norm(inv[1]))
+
+
+@dataclass(frozen=True)
+class CompleteConfig:
+    """Placing a candidate's unseen sides in 3D (:func:`complete_open`; metres unless noted).
+
+    ``enabled`` turns it on (the pipeline's candidate step); each unseen side is looked for
+    within ``search`` of where the segmentation guessed it, every ``step``; it must show a
+    step across it (``threshold_ratio`` of each image's Canny low threshold) along
+    ``min_support`` of its samples in both images; ``side_range``: the cover's sides.
+    """
+
+    enabled: bool = True
+    search: float = 0.025
+    step: float = 0.001
+    height_step: float = 0.008
+    max_height: float = 0.10
+    threshold_ratio: float = 0.5
+    min_support: float = 0.45
+    side_range: tuple[float, float] = (0.048, 0.45)
+    max_angle_deg: float = 25.0
+    side_sigma: float = 0.008
+    inner_edge: bool = True
+
+
+def complete_open(corners: dict[str, NDArray[np.float64]], seen: dict[str, NDArray[np.bool_]],
+                  Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
+                  min_strength: dict[str, float], desk_plane: NDArray[np.float64],
+                  cfg: CompleteConfig = CompleteConfig(), *,
+                  height_range: tuple[float, float] = (0.0, np.inf),
+                  fits: dict[str, list[tuple[NDArray[np.float64], NDArray[np.float64]] | None]]
+                  | None = None) -> NDArray[np.float64] | None:
+    """A cover candidate with sides unseen, completed to a rectangle on the desk's parallel.
+
+    A three- or two-sided candidate (:func:`rovis.segment.quads.three_sided_quads`,
+    :func:`~rovis.segment.quads.two_sided_quads`) guesses its unseen sides in each image
+    on its own, where its seen sides' edges end; refined there, one image's guess often
+    snaps to a print or the page block's foot and the other's does not, and the pair is
+    no flat cover (corners centimetres apart in height). A book lies on the desk, so its
+    cover is a rectangle parallel to it: the seen sides, fitted in the images that saw
+    them, give its height (at their corners, triangulated) and its orientation (laid on
+    that plane); each unseen side is then one offset, looked for in 3D, where its
+    projection shows a step in *both* images at once.
+
+    Parameters
+    ----------
+    corners : dict camera -> ndarray, shape (4, 2)
+        The candidate's corners in each ideal image, the same physical corner at one index.
+    seen : dict camera -> ndarray, shape (4,), bool
+        Which sides (side s from corner s to s + 1) were Hough lines in that image.
+    Q, grads, min_strength, desk_plane
+        As :func:`fit_extent`.
+
+    Returns
+    -------
+    ndarray, shape (4, 3) or None
+        World corners in the same order, or None: fewer than two sides seen, none unseen,
+        no height, or an unseen side with no step in both images.
+    """
+    anchored = np.asarray(seen["left"], bool) | np.asarray(seen["right"], bool)
+    if anchored.sum() < 2 or anchored.all():
+        return None
+    cams = ("left", "right")
+    if fits is None:  # the seen sides refit as the covers' are (the page block's foot not)
+        fits = {cam: [f if seen[cam][s] else None
+                      for s, f in enumerate(refine_sides(grads[cam], corners[cam]))]
+                for cam in cams}
+    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+    # 1. the cover's height, by stereo: at each corner between two seen sides (the fitted
+    # sides intersected in each image, triangulated) and along each side fitted in both
+    # images where that is well conditioned (a side along the epipolar lines has none);
+    # the median, for a corner or side on another book's edge or the page block's foot
+    estimates = []
+    for c in range(4):
+        if not (anchored[c - 1] and anchored[c]):
+            continue
+        px = {}
+        for cam in cams:
+            f1, f2 = fits[cam][c - 1], fits[cam][c]
+            x = intersect(f1[0], f1[1], f2[0], f2[1]) if f1 is not None and f2 is not None \
+                else None
+            px[cam] = corners[cam][c] if x is None else x
+        P = geometry.triangulate_dlt(Q["left"], Q["right"], px["left"][None], px["right"][None])
+        estimates.append(float(geometry.plane_distance(desk_plane, P)[0]))
+    for s in range(4):
+        if fits["left"][s] is None or fits["right"][s] is None:
+            continue
+        ab = geometry.triangulate_dlt(Q["left"], Q["right"], corners["left"][[s, (s + 1) % 4]],
+                                      corners["right"][[s, (s + 1) % 4]])
+        z, sigma = _line_height({cam: fits[cam][s] for cam in cams}, ab[0], ab[1], Q, up)
+        if sigma <= cfg.side_sigma:
+            estimates.append(float(geometry.plane_distance(desk_plane, ab.mean(axis=0)[None])[0]) + z)
+    strength = {cam: cfg.threshold_ratio * min_strength[cam] for cam in cams}
+    if estimates:
+        h = float(np.median(estimates))
+        if not (np.isfinite(h) and height_range[0] <= h <= height_range[1]):
+            return None
+        placed = _place(h, corners, fits, Q, grads, strength, desk_plane, cfg)
+        return None if placed is None else placed[0]
+    # Two opposite sides along the epipolar lines (stereo cannot place them), their ends
+    # where each image's edges happen to stop: no height. The unseen sides, across the
+    # epipolar lines, tell it: the height whose rectangle has the strongest unseen sides,
+    # every cfg.height_step over the range, then every quarter of that around the best.
+    lo, hi = height_range[0], min(height_range[1], cfg.max_height)
+    best: tuple[NDArray[np.float64], float, float] | None = None
+    for heights in (np.arange(lo, hi + 1e-9, cfg.height_step), None):
+        if heights is None:  # around the best of the first pass
+            if best is None:
+                return None
+            heights = best[2] + cfg.height_step / 4 * np.array([-2.0, -1.0, 1.0, 2.0])
+        for h in heights:
+            if lo <= h <= hi:  # (the first pass at every other offset)
+                placed = _place(float(h), corners, fits, Q, grads, strength, desk_plane, cfg,
+                                step=2 * cfg.step if len(heights) > 4 else cfg.step)
+                if placed is not None and (best is None or placed[1] > best[1]):
+                    best = (placed[0], placed[1], float(h))
+    return None if best is None else best[0]
+
+
+def _place(h: float, corners: dict[str, NDArray[np.float64]],
+           fits: dict[str, list[tuple[NDArray[np.float64], NDArray[np.float64]] | None]],
+           Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
+           strength: dict[str, float], desk_plane: NDArray[np.float64],
+           cfg: CompleteConfig, step: float | None = None,
+           ) -> tuple[NDArray[np.float64], float] | None:
+    """:func:`complete_open`'s rectangle at cover height ``h``: its corners (4, 3) and the
+    summed strength of its unseen sides (units of ``strength``), or None; the unseen sides
+    looked for every ``step`` (default ``cfg.step``)."""
+    cams = ("left", "right")
+    on_desk, up, e1, e2 = _plane_frame(desk_plane)
+    origin = on_desk + h * up
+
+    def flat(X: NDArray[np.float64]) -> NDArray[np.float64]:  # cover plane coordinates
+        return np.column_stack([(X - origin) @ e1, (X - origin) @ e2])
+
+    # 1. each seen side on that plane: its fits' ends, both images
+    ends: dict[int, list[NDArray[np.float64]]] = {s: [] for s in range(4)}
+    guess = np.zeros((4, 2))  # corners on the plane, as the images guessed them
+    for cam in cams:
+        guess += 0.5 * flat(on_plane(Q[cam], corners[cam], desk_plane, h))
+        for s in range(4):
+            f = fits[cam][s]
+            if f is None:
+                continue
+            p, d = f
+            t = [(corners[cam][k] - p) @ d for k in (s, (s + 1) % 4)]
+            ends[s].append(flat(on_plane(Q[cam], np.array([p + t[0] * d, p + t[1] * d]),
+                                          desk_plane, h)))
+    fitted = [s for s in range(4) if ends[s]]
+    if len(fitted) < 2:
+        return None
+    # 2. the rectangle's axes: the fitted sides' directions (odd sides turned by 90°)
+    phi = np.array([np.arctan2(e[1, 1] - e[0, 1], e[1, 0] - e[0, 0])
+                    + (np.pi / 2 if s % 2 else 0.0) for s in fitted for e in ends[s]])
+    theta = 0.5 * np.arctan2(np.mean(np.sin(2 * phi)), np.mean(np.cos(2 * phi)))
+    u = np.array([np.cos(theta), np.sin(theta)])
+    v = np.array([-np.sin(theta), np.cos(theta)])
+    normal = [v, u, v, u]  # side s lies on normal[s] · x = offset[s]
+    offset = np.array([normal[s] @ (np.mean(ends[s], axis=(0, 1)) if ends[s] else
+                                    0.5 * (guess[s] + guess[(s + 1) % 4])) for s in range(4)])
+
+    def corners_at(o: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(D, 4, 3) world corners for offsets (D, 4)."""
+        xy = np.empty((len(o), 4, 2))
+        for c in range(4):  # corner c joins side c - 1 and side c
+            a, b = (o[:, c - 1], o[:, c]) if c % 2 == 0 else (o[:, c], o[:, c - 1])
+            xy[:, c] = a[:, None] * u + b[:, None] * v  # u·x = a, v·x = b
+        return origin + xy[..., :1] * e1 + xy[..., 1:] * e2
+
+    # 3. each unseen side: the offset near its guess that is a step in both images
+    limits = ExtentConfig(min_support=cfg.min_support, max_angle_deg=cfg.max_angle_deg)
+    open_sides = [s for s in range(4) if s not in fitted]
+    total = 0.0
+    adjacent = len(open_sides) == 2 and (open_sides[1] - open_sides[0]) % 2 == 1
+    for _ in range(2 if adjacent else 1):  # two adjacent unseen sides bound each other
+        total = 0.0
+        for s in open_sides:
+            d = np.arange(-cfg.search, cfg.search + 1e-9, step or cfg.step)
+            o = np.repeat(offset[None], len(d), axis=0)
+            o[:, s] += d
+            P = corners_at(o)
+            length = np.linalg.norm(np.roll(P, -1, axis=1) - P, axis=2)
+            idx = np.flatnonzero(np.all((length >= cfg.side_range[0])
+                                        & (length <= cfg.side_range[1]), axis=1))
+            if len(idx) == 0:
+                return None
+            edge, score = _side_scores(P[idx], s, (s + 1) % 4, Q, grads, strength, limits)
+            if not edge.any():
+                return None
+            full = np.full(len(d), -np.inf)  # the score of every offset that is an edge
+            full[idx[edge]] = score[edge]
+            k = int(np.argmax(full))
+            if cfg.inner_edge and _block_shows(corners_at(offset[None])[0], s, Q, -h * up):
+                # a side facing the camera: its page block's foot, further out, is an edge
+                # too, and along the epipolar lines stereo cannot tell their heights; the
+                # cover's edge is the first from inside
+                pad = np.concatenate([[-np.inf], full, [-np.inf]])
+                peak = np.flatnonzero((full > -np.inf) & (full >= pad[:-2]) & (full >= pad[2:]))
+                outward = np.sign(offset[s] - offset[(s + 2) % 4])
+                k = int(peak[np.argmin(outward * d[peak])])
+            offset[s] = o[k, s]
+            total += float(full[k])
+    return corners_at(offset[None])[0], total

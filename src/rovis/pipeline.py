@@ -28,14 +28,14 @@ from numpy.typing import NDArray
 
 from rovis import geometry, marker
 from rovis.calib import StereoRig
-from rovis.extent import ExtentConfig, fit_pair_extent
+from rovis.extent import CompleteConfig, ExtentConfig, complete_open, fit_pair_extent
 from rovis.heightmap import HeightMapConfig, height_map, raised_covers, snap_sides
 from rovis.imageio import to_gray_u8
 from rovis.results import BookDetection, FrameResult, SegmentationInfo
 from rovis.segment import CascadeController, SegmentConfig, Segmentation, gradients
 from rovis.segment.edges import CANNY_LOW_RATIO, Gradients
 from rovis.segment.methods import METHODS, segment
-from rovis.segment.boundary import refine_quad, refine_quad_both, side_evidence
+from rovis.segment.boundary import refine_quad, refine_quad_both, refine_sides, side_evidence
 from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
 from rovis.stereo import (Match, StereoConfig, find_in_other_view, flat_rectangle, match_quads,
                           pool_pairs)
@@ -98,9 +98,12 @@ class DetectConfig:
     fit_rectangle : bool
         Replace the four separately triangulated corners by one 3D rectangle fitted to both
         images' corners (:func:`rovis.geometry.fit_rectangle`; beyond the paper).
-    segment, stereo, extent, sweep : SegmentConfig, StereoConfig, ExtentConfig, SweepConfig
+    segment, stereo, extent, complete, sweep : SegmentConfig, StereoConfig, ExtentConfig, CompleteConfig, SweepConfig
         ``extent``: moving each cover's sides to its edges in both images
-        (:mod:`rovis.extent`; beyond the paper; needs the desk plane). ``sweep``: each
+        (:mod:`rovis.extent`; beyond the paper; needs the desk plane). ``complete``: a
+        pair of candidates with sides unseen, completed to a rectangle in 3D where
+        refining each image alone gives no flat cover (:func:`rovis.extent.complete_open`;
+        beyond the paper; needs the desk plane). ``sweep``: each
         cover's height tested against its print, and a printed cover found in one image
         only placed in the other by its print (:mod:`rovis.sweep`; beyond the paper; needs
         the desk plane; the placing also ``stereo.transfer``).
@@ -124,6 +127,7 @@ class DetectConfig:
     segment: SegmentConfig = field(default_factory=SegmentConfig)
     stereo: StereoConfig = field(default_factory=StereoConfig)
     extent: ExtentConfig = field(default_factory=ExtentConfig)
+    complete: CompleteConfig = field(default_factory=CompleteConfig)
     sweep: SweepConfig = field(default_factory=SweepConfig)
     heightmap: HeightMapConfig = field(default_factory=HeightMapConfig)
 
@@ -649,26 +653,72 @@ class Detector:
             good = flat(l2, r2)
             left[retry[good]], right[retry[good]] = l2[good], r2[good]
             ok[retry[good]] = True
-        keep = np.flatnonzero(ok)
+        # A pair with sides unseen whose refined guesses still make no flat cover: its
+        # unseen sides placed in 3D instead, from the seen ones (rovis.extent.complete_open)
+        completed = np.zeros(len(i), bool)
+        side_fits: dict[tuple[str, int], list[Any]] = {}
+
+        def fits_of(cam: str, k: int) -> list[Any]:
+            # each candidate's seen sides fitted once, for every pair it is in
+            if (cam, k) not in side_fits:
+                side_fits[cam, k] = [f if pool[cam].lines[k, s] >= 0 else None for s, f in
+                                     enumerate(refine_sides(grads[cam], pool[cam].corners[k]))]
+            return side_fits[cam, k]
+
+        def complete(a: int) -> bool:
+            if not cfg.complete.enabled or not (
+                    np.any(pool["left"].lines[i[a]] < 0) or np.any(pool["right"].lines[j[a]] < 0)):
+                return False
+            shift = int(pp.shift[a])
+            P = complete_open(
+                {"left": pool["left"].corners[i[a]],
+                 "right": np.roll(pool["right"].corners[j[a]], -shift, axis=0)},
+                {"left": pool["left"].lines[i[a]] >= 0,
+                 "right": np.roll(pool["right"].lines[j[a]] >= 0, -shift)},
+                {"left": rig.Q_L, "right": rig.Q_R}, grads, strength, desk_plane, cfg.complete,
+                height_range=(cfg.stereo.min_height, cfg.stereo.max_cover_height),
+                fits={"left": fits_of("left", int(i[a])),
+                      "right": [fits_of("right", int(j[a]))[(s + shift) % 4] for s in range(4)]})
+            if P is None or not flat(geometry.project(rig.Q_L, P)[None],
+                                     geometry.project(rig.Q_R, P)[None])[0]:
+                return False
+            left[a], right[a] = geometry.project(rig.Q_L, P), geometry.project(rig.Q_R, P)
+            completed[a] = True
+            return True
+
+        # the pairs that refined to a flat cover, the most edge pixels first; then those
+        # with sides unseen that did not, completed in 3D when their turn comes (most are
+        # over a book found by then)
+        could = np.array([cfg.complete.enabled and bool(
+            np.any(pool["left"].lines[i[a]] < 0) or np.any(pool["right"].lines[j[a]] < 0))
+            for a in range(len(i))], dtype=bool)
+        keep = np.flatnonzero(ok | could)
         score = pool["left"].n_f[i[keep]] + pool["right"].n_f[j[keep]]
-        keep = keep[np.argsort(-score, kind="stable")]  # the most edge pixels first
-        area = np.array([cv2.contourArea(q.astype(np.float32)) for q in left[keep]])
+        keep = keep[np.lexsort((-score, ~ok[keep]))]
+        flat_ones = keep[ok[keep]]  # (first in keep) what a union is made of
+        area = np.array([cv2.contourArea(q.astype(np.float32)) for q in left[flat_ones]])
         out: list[tuple[Pair, BookDetection]] = []
+
+        def free(a: int) -> bool:
+            return not (any(quad_overlap(left[a], t) > overlap for t in taken["left"])
+                        or any(quad_overlap(right[a], t) > overlap for t in taken["right"]))
+
         for rank, a in enumerate(keep.tolist()):
-            if any(quad_overlap(left[a], t) > overlap for t in taken["left"]) or \
-                    any(quad_overlap(right[a], t) > overlap for t in taken["right"]):
+            if not free(a):
                 continue
-            if _is_union(rank, left[keep], area, overlap):
+            if ok[a] and _is_union(rank, left[flat_ones], area, overlap):
                 continue
-            if two_open(pool["left"], i[a]) or two_open(pool["right"], j[a]):
+            if not ok[a] and not (complete(a) and free(a)):
+                continue
+            if not completed[a] and (two_open(pool["left"], i[a]) or two_open(pool["right"], j[a])):
                 # two sides guessed: each side must show a step in both images, and the
                 # corners lie at one height (a guessed corner is off in depth)
                 step = min(side_evidence(grads[cam], q, evidence * strength[cam]).min()
                            for cam, q in (("left", left[a]), ("right", right[a])))
                 heights = geometry.plane_distance(
                     desk_plane, geometry.triangulate_dlt(rig.Q_L, rig.Q_R, left[a], right[a]))
-                if step < cfg.stereo.two_sided_evidence or \
-                        np.ptp(heights) > cfg.stereo.two_sided_flatness:
+                if (step < cfg.stereo.two_sided_evidence
+                        or np.ptp(heights) > cfg.stereo.two_sided_flatness) and not complete(a):
                     continue
             quality = float(min(pool["left"].support[i[a]].mean(),
                                 pool["right"].support[j[a]].mean()))

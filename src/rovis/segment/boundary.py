@@ -20,6 +20,7 @@ from rovis.segment.edges import Gradients, canny
 from rovis.segment.lines import (Lines, SupportProfile, hough_lines, intersect, refine_lines,
                                  refine_segment, support_profile)
 from rovis.segment.quads import (CoverSelection, QuadConfig, Quads, _canonical, _corner_graph,
+                                 canonical_quads,
                                  _distinct, candidate_quads, opposite_sided_quads, order_corners,
                                  three_sided_quads, two_sided_quads)
 from rovis.segment.quality import PRINTED, quality
@@ -174,18 +175,17 @@ class Segmentation:
         and, in the closed loop, at the other T_H it evaluated), corners in eq. 1 order
         (Hough corners, not refined), the most edge pixels first; stereo picks books among
         them where no cover gave one (:func:`rovis.stereo.pool_pairs`). Its per-side
-        ``lines`` and ``support`` keep each candidate's own cyclic order, and ``lines``
-        index the Lines of the evaluation it came from. Empty for methods without
-        candidates.
+        ``lines`` and ``support`` follow the corners (side s from corner s to s + 1), and
+        ``lines`` index the Lines of the evaluation it came from. Empty for methods
+        without candidates.
     open_pool : Quads
-        Beyond the paper: candidates with three sides on Hough lines and the fourth (side
-        2) where the edges of the two beside it end (:func:`three_sided_quads`; with
+        Beyond the paper: candidates with three sides on Hough lines and the fourth where
+        the edges of the two beside it end (:func:`three_sided_quads`; with
         ``SegmentConfig.three_sided``), corners in eq. 1 order, the most edge pixels
-        first, for stereo like :attr:`pool`. Its ``lines`` and ``support`` keep each
-        candidate's own cyclic order (side 2, ``lines`` −1 and ``support`` 0, is the open
-        one), not the corners' eq. 1 order. With ``SegmentConfig.two_sided``, followed by
-        the candidates with two sides unseen (sides 1 and 2 open,
-        :func:`two_sided_quads`).
+        first, for stereo like :attr:`pool`; ``lines`` and ``support`` follow the corners
+        as in :attr:`pool`, an unseen side's ``lines`` −1 and ``support`` 0. With
+        ``SegmentConfig.two_sided``, followed by the candidates with two sides unseen
+        (:func:`two_sided_quads`, :func:`opposite_sided_quads`).
     three_sided : ndarray, shape (K,), bool
         Per cover, whether it is one of the three-sided candidates, kept as a cover
         (``SegmentConfig.three_sided_support``): its fourth side unseen; its ``support``
@@ -294,12 +294,12 @@ def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
     :attr:`Segmentation.pool` (default: ``ev``'s own, at most ``pool_size``,
     :func:`candidate_pool`); ``open_pool``: :attr:`Segmentation.open_pool`'s."""
     clock = time.perf_counter()
-    open_pool = (replace(open_pool, corners=_canonical(open_pool.corners))
-                 if open_pool is not None and len(open_pool) else Quads.empty())
+    open_pool = (canonical_quads(open_pool) if open_pool is not None and len(open_pool)
+                 else Quads.empty())
     if pool is None:
         pool = candidate_pool([ev.selection.quads] if ev.selection is not None else [],
                               pool_size)
-    pool = replace(pool, corners=_canonical(pool.corners)) if len(pool) else Quads.empty()
+    pool = canonical_quads(pool) if len(pool) else Quads.empty()
     if len(ev.covers) == 0:
         _lap(timing, "refine", clock)
         return Segmentation(np.zeros((0, 4, 2)), np.zeros((0, 4, 2)), np.zeros(0), ev.lines,
@@ -399,29 +399,52 @@ def refine_quad_both(grad: Gradients, corners: NDArray[np.float64], *,
     return inward, plain
 
 
+def refine_sides(grad: Gradients, corners: NDArray[np.float64], *,
+                 down: tuple[float, float] = (0.0, 1.0),
+                 ) -> list[tuple[NDArray[np.float64], NDArray[np.float64]] | None]:
+    """Each side of a quad (4, 2) refit as :func:`refine_quad` refits it (the cover edge
+    looked for inside a side facing the camera): side s (corner s to s + 1) as a point and
+    unit direction, or None where it cannot be refit."""
+    return [_fit_side(grad, corners, s, down, both=False)[0] for s in range(4)]
+
+
+Fit = tuple[NDArray[np.float64], NDArray[np.float64]]  # a line: point, unit direction
+
+
+def _fit_side(grad: Gradients, corners: NDArray[np.float64], s: int, down: tuple[float, float],
+              *, both: bool) -> tuple[Fit | None, Fit | None, float]:
+    """Side ``s`` refit with the inward search for the cover edge and (``both``, where the
+    search moved it) without it, each None where it fails; and the search's shift (px)."""
+    a, b = corners[s], corners[(s + 1) % 4]
+    d = (b - a) / np.linalg.norm(b - a)
+    n_in = np.array([-d[1], d[0]])
+    if n_in @ (corners.mean(axis=0) - a) < 0:
+        n_in = -n_in
+    shift = 0.0
+    if -n_in @ np.asarray(down) > 0.05:
+        across = float(np.max((corners - a) @ n_in))  # the quad's extent across this side
+        shift = cover_edge_offset(grad, a, b, n_in, max_px=min(25.0, 0.2 * across))
+    inward = refine_segment(grad, a + shift * n_in, b + shift * n_in)
+    plain = refine_segment(grad, a, b) if both and shift != 0.0 else None
+    return inward, plain, shift
+
+
 def _refit(grad: Gradients, corners: NDArray[np.float64], down: tuple[float, float], *,
            both: bool) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
     """:func:`refine_quad`'s corners, and (``both``) those without the inward search."""
-    center = corners.mean(axis=0)
     inward, plain = [], []
     for s in range(4):
         a, b = corners[s], corners[(s + 1) % 4]
+        fit_in, fit_plain, shift = _fit_side(grad, corners, s, down, both=both)
         d = (b - a) / np.linalg.norm(b - a)
         n_in = np.array([-d[1], d[0]])
-        if n_in @ (center - a) < 0:
+        if n_in @ (corners.mean(axis=0) - a) < 0:
             n_in = -n_in
-        shift = 0.0
-        if -n_in @ np.asarray(down) > 0.05:
-            across = float(np.max((corners - a) @ n_in))  # the quad's extent across this side
-            shift = cover_edge_offset(grad, a, b, n_in, max_px=min(25.0, 0.2 * across))
-        fits = [(a + shift * n_in, b + shift * n_in)]
-        if both and shift != 0.0:
-            fits.append((a, b))
-        for k, (p, q) in enumerate(fits):
-            fit = refine_segment(grad, p, q)
-            (inward if k == 0 else plain).append(fit if fit is not None else (0.5 * (p + q), d))
-        if both and shift == 0.0:
-            plain.append(inward[-1])
+        # a side that cannot be refit keeps the segment it was fit from
+        inward.append(fit_in if fit_in is not None else (0.5 * (a + b) + shift * n_in, d))
+        if both:
+            plain.append(inward[-1] if shift == 0.0 else
+                         fit_plain if fit_plain is not None else (0.5 * (a + b), d))
     return _join(inward, corners), (_join(plain, corners) if both else None)
 
 

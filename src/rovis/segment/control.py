@@ -225,9 +225,10 @@ def with_three_sided_covers(best: Evaluation, alternatives: tuple[np.ndarray, ..
     kept = list(best.covers.corners)
     extra = []
     for k in range(len(open_pool)):  # the most edge pixels first
-        seen = np.delete(open_pool.support[k], 2)  # side 2 is the open one
+        seen = open_pool.lines[k] >= 0  # the open side has no line
         quad = open_pool.corners[k]
-        if seen.min() >= min_support and not any(
+        if np.count_nonzero(~seen) == 1 and open_pool.support[k][seen].min() >= min_support \
+                and not any(
                 quad_overlap(quad, q) > max_overlap for q in kept):
             kept.append(quad)
             extra.append(k)

@@ -686,6 +686,23 @@ def _canonical(c: NDArray[np.float64]) -> NDArray[np.float64]:
     return c.reshape(-1, 2)[idx]
 
 
+def canonical_quads(quads: Quads) -> Quads:
+    """``quads`` with their corners in :func:`_canonical` order and each side's line and
+    support moved with it (side s still runs from corner s to corner s + 1)."""
+    if len(quads) == 0:
+        return quads
+    c = quads.corners
+    rev = _shoelace(c) < 0
+    c = np.where(rev[:, None, None], c[:, ::-1], c)
+    start = np.argmin(c[..., 0] + c[..., 1], axis=1)
+    k = (start[:, None] + np.arange(4)) % 4  # canonical corner i = (reversed) corner k
+    rows = np.arange(len(c))[:, None]
+    # a reversed quad's side from its corners k to k + 1 is the original's side 2 - k
+    side = np.where(rev[:, None], (2 - k) % 4, k)
+    return Quads(quads.lines[rows, side], c[rows, k], quads.support[rows, side], quads.n_f,
+                 quads.min_votes)
+
+
 def _inside_convex(inner: NDArray[np.float64], outer: NDArray[np.float64],
                    tol: float = 2.0, *, ordered: bool = False) -> NDArray[np.bool_]:
     """For quad pairs (M, 4, 2): are all of ``inner``'s corners inside convex ``outer``
