@@ -446,10 +446,16 @@ def _line_height(fits: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]
 class CompleteConfig:
     """Placing a candidate's unseen sides in 3D (:func:`complete_open`; metres unless noted).
 
-    ``enabled`` turns it on (the pipeline's candidate step); each unseen side is looked for
+    ``enabled`` turns it on (the pipeline's candidate step). Each unseen side is looked for
     within ``search`` of where the segmentation guessed it, every ``step``; it must show a
-    step across it (``threshold_ratio`` of each image's Canny low threshold) along
-    ``min_support`` of its samples in both images; ``side_range``: the cover's sides.
+    step across it (a derivative of ``threshold_ratio`` of each image's Canny low
+    threshold, the gradient within ``max_angle_deg`` of across it) along ``min_support``
+    of its samples in both images, and the strongest such offset is taken, or for a side
+    facing the camera (``inner_edge``) the first from inside. A side's stereo height counts
+    towards the cover's where its standard deviation is at most ``side_sigma`` (for 0.1 px
+    per fit). Where no height is measured (two opposite sides along the epipolar lines),
+    heights from the desk up to ``max_height`` are tried every ``height_step``, then every
+    quarter of that within half a step of the best.
     """
 
     enabled: bool = True
@@ -459,7 +465,6 @@ class CompleteConfig:
     max_height: float = 0.10
     threshold_ratio: float = 0.5
     min_support: float = 0.45
-    side_range: tuple[float, float] = (0.048, 0.45)
     max_angle_deg: float = 25.0
     side_sigma: float = 0.008
     inner_edge: bool = True
@@ -470,6 +475,7 @@ def complete_open(corners: dict[str, NDArray[np.float64]], seen: dict[str, NDArr
                   min_strength: dict[str, float], desk_plane: NDArray[np.float64],
                   cfg: CompleteConfig = CompleteConfig(), *,
                   height_range: tuple[float, float] = (0.0, np.inf),
+                  side_range: tuple[float, float] = (0.048, 0.45),
                   fits: dict[str, list[tuple[NDArray[np.float64], NDArray[np.float64]] | None]]
                   | None = None) -> NDArray[np.float64] | None:
     """A cover candidate with sides unseen, completed to a rectangle on the desk's parallel.
@@ -492,6 +498,15 @@ def complete_open(corners: dict[str, NDArray[np.float64]], seen: dict[str, NDArr
         Which sides (side s from corner s to s + 1) were Hough lines in that image.
     Q, grads, min_strength, desk_plane
         As :func:`fit_extent`.
+    cfg : CompleteConfig
+    height_range : (float, float)
+        The cover's height above the desk must lie within it (metres).
+    side_range : (float, float)
+        Every side of the completed cover must lie within it (metres).
+    fits : dict camera -> list of 4 (point, direction) or None, optional
+        Each side's line in each image (None where unseen or not refit), if already
+        known (the pipeline fits each candidate once for every pair it is in); by default
+        the seen sides refit here (:func:`rovis.segment.boundary.refine_sides`).
 
     Returns
     -------
@@ -508,21 +523,18 @@ def complete_open(corners: dict[str, NDArray[np.float64]], seen: dict[str, NDArr
                       for s, f in enumerate(refine_sides(grads[cam], corners[cam]))]
                 for cam in cams}
     up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
-    # 1. the cover's height, by stereo: at each corner between two seen sides (the fitted
-    # sides intersected in each image, triangulated) and along each side fitted in both
-    # images where that is well conditioned (a side along the epipolar lines has none);
-    # the median, for a corner or side on another book's edge or the page block's foot
+    # The cover's height, by stereo: at each corner of two sides fitted in both images
+    # (intersected in each, triangulated) and along each side fitted in both images where
+    # that is well conditioned (a side along the epipolar lines has none); the median, for
+    # a corner or side on another book's edge or the page block's foot.
     estimates = []
     for c in range(4):
-        if not (anchored[c - 1] and anchored[c]):
+        if any(fits[cam][k] is None for cam in cams for k in (c - 1, c)):
             continue
-        px = {}
-        for cam in cams:
-            f1, f2 = fits[cam][c - 1], fits[cam][c]
-            x = intersect(f1[0], f1[1], f2[0], f2[1]) if f1 is not None and f2 is not None \
-                else None
-            px[cam] = corners[cam][c] if x is None else x
-        P = geometry.triangulate_dlt(Q["left"], Q["right"], px["left"][None], px["right"][None])
+        px = [intersect(*fits[cam][c - 1], *fits[cam][c]) for cam in cams]
+        if px[0] is None or px[1] is None:
+            continue
+        P = geometry.triangulate_dlt(Q["left"], Q["right"], px[0][None], px[1][None])
         estimates.append(float(geometry.plane_distance(desk_plane, P)[0]))
     for s in range(4):
         if fits["left"][s] is None or fits["right"][s] is None:
@@ -534,36 +546,41 @@ def complete_open(corners: dict[str, NDArray[np.float64]], seen: dict[str, NDArr
             estimates.append(float(geometry.plane_distance(desk_plane, ab.mean(axis=0)[None])[0]) + z)
     strength = {cam: cfg.threshold_ratio * min_strength[cam] for cam in cams}
     if estimates:
-        h = float(np.median(estimates))
+        h = float(np.nanmedian(estimates)) if np.any(np.isfinite(estimates)) else np.nan
         if not (np.isfinite(h) and height_range[0] <= h <= height_range[1]):
             return None
-        placed = _place(h, corners, fits, Q, grads, strength, desk_plane, cfg)
+        placed = _place(h, corners, fits, Q, grads, strength, desk_plane, cfg, side_range)
         return None if placed is None else placed[0]
     # Two opposite sides along the epipolar lines (stereo cannot place them), their ends
     # where each image's edges happen to stop: no height. The unseen sides, across the
     # epipolar lines, tell it: the height whose rectangle has the strongest unseen sides,
     # every cfg.height_step over the range, then every quarter of that around the best.
-    lo, hi = height_range[0], min(height_range[1], cfg.max_height)
-    best: tuple[NDArray[np.float64], float, float] | None = None
-    for heights in (np.arange(lo, hi + 1e-9, cfg.height_step), None):
-        if heights is None:  # around the best of the first pass
-            if best is None:
-                return None
-            heights = best[2] + cfg.height_step / 4 * np.array([-2.0, -1.0, 1.0, 2.0])
-        for h in heights:
-            if lo <= h <= hi:  # (the first pass at every other offset)
-                placed = _place(float(h), corners, fits, Q, grads, strength, desk_plane, cfg,
-                                step=2 * cfg.step if len(heights) > 4 else cfg.step)
-                if placed is not None and (best is None or placed[1] > best[1]):
-                    best = (placed[0], placed[1], float(h))
-    return None if best is None else best[0]
+    # from the desk up: a sheet on the desk must come out there, not at the lowest height
+    # a cover may have
+    lo, hi = 0.0, min(height_range[1], cfg.max_height)
+
+    def sweep(heights: NDArray[np.float64], step: float,
+              ) -> tuple[float, float, NDArray[np.float64]] | None:
+        best = None  # (score, height, corners)
+        for h in heights[(heights >= lo) & (heights <= hi)]:
+            placed = _place(float(h), corners, fits, Q, grads, strength, desk_plane, cfg,
+                            side_range, step=step)
+            if placed is not None and (best is None or placed[1] > best[0]):
+                best = (placed[1], float(h), placed[0])
+        return best
+
+    coarse = sweep(np.arange(lo, hi + 1e-9, cfg.height_step), 2 * cfg.step)  # every other offset
+    if coarse is None:
+        return None
+    fine = sweep(coarse[1] + cfg.height_step / 4 * np.arange(-2.0, 2.5), cfg.step)
+    return None if fine is None or fine[1] < height_range[0] else fine[2]
 
 
 def _place(h: float, corners: dict[str, NDArray[np.float64]],
            fits: dict[str, list[tuple[NDArray[np.float64], NDArray[np.float64]] | None]],
            Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
            strength: dict[str, float], desk_plane: NDArray[np.float64],
-           cfg: CompleteConfig, step: float | None = None,
+           cfg: CompleteConfig, side_range: tuple[float, float], step: float | None = None,
            ) -> tuple[NDArray[np.float64], float] | None:
     """:func:`complete_open`'s rectangle at cover height ``h``: its corners (4, 3) and the
     summed strength of its unseen sides (units of ``strength``), or None; the unseen sides
@@ -622,8 +639,8 @@ def _place(h: float, corners: dict[str, NDArray[np.float64]],
             o[:, s] += d
             P = corners_at(o)
             length = np.linalg.norm(np.roll(P, -1, axis=1) - P, axis=2)
-            idx = np.flatnonzero(np.all((length >= cfg.side_range[0])
-                                        & (length <= cfg.side_range[1]), axis=1))
+            idx = np.flatnonzero(np.all((length >= side_range[0])
+                                        & (length <= side_range[1]), axis=1))
             if len(idx) == 0:
                 return None
             edge, score = _side_scores(P[idx], s, (s + 1) % 4, Q, grads, strength, limits)

@@ -98,7 +98,9 @@ class DetectConfig:
     fit_rectangle : bool
         Replace the four separately triangulated corners by one 3D rectangle fitted to both
         images' corners (:func:`rovis.geometry.fit_rectangle`; beyond the paper).
-    segment, stereo, extent, complete, sweep : SegmentConfig, StereoConfig, ExtentConfig, CompleteConfig, SweepConfig
+    segment, stereo, extent, complete, sweep
+        :class:`SegmentConfig`, :class:`StereoConfig`, :class:`ExtentConfig`,
+        :class:`CompleteConfig`, :class:`SweepConfig`.
         ``extent``: moving each cover's sides to its edges in both images
         (:mod:`rovis.extent`; beyond the paper; needs the desk plane). ``complete``: a
         pair of candidates with sides unseen, completed to a rectangle in 3D where
@@ -564,7 +566,9 @@ class Detector:
         checks; a pair whose left quad holds two or more such pairs that fill it is taken
         for the union of touching books and gives way to them. A pair with two sides
         unseen in either image (a two-sided candidate) must also show a step along each
-        refined side in both images and have its corners at one height.
+        refined side in both images and have its corners at one height. A pair with a side
+        neither image saw that fails those tests is completed in 3D instead
+        (:func:`rovis.extent.complete_open`), after every pair that refined flat.
         """
         cfg = self.cfg
         overlap = cfg.stereo.transfer_max_overlap
@@ -665,22 +669,33 @@ class Detector:
                                      enumerate(refine_sides(grads[cam], pool[cam].corners[k]))]
             return side_fits[cam, k]
 
+        def seen(a: int) -> dict[str, NDArray[np.bool_]]:
+            # which sides each image's candidate saw, in the left candidate's corner order
+            return {"left": pool["left"].lines[i[a]] >= 0,
+                    "right": np.roll(pool["right"].lines[j[a]] >= 0, -int(pp.shift[a]))}
+
+        def completable(a: int) -> bool:  # a side neither image saw
+            sides = seen(a)
+            return cfg.complete.enabled and not bool(np.all(sides["left"] | sides["right"]))
+
         def complete(a: int) -> bool:
-            if not cfg.complete.enabled or not (
-                    np.any(pool["left"].lines[i[a]] < 0) or np.any(pool["right"].lines[j[a]] < 0)):
+            if not completable(a):
                 return False
             shift = int(pp.shift[a])
             P = complete_open(
                 {"left": pool["left"].corners[i[a]],
                  "right": np.roll(pool["right"].corners[j[a]], -shift, axis=0)},
-                {"left": pool["left"].lines[i[a]] >= 0,
-                 "right": np.roll(pool["right"].lines[j[a]] >= 0, -shift)},
-                {"left": rig.Q_L, "right": rig.Q_R}, grads, strength, desk_plane, cfg.complete,
+                seen(a), {"left": rig.Q_L, "right": rig.Q_R}, grads, strength, desk_plane,
+                cfg.complete,
                 height_range=(cfg.stereo.min_height, cfg.stereo.max_cover_height),
+                side_range=(0.8 * cfg.min_cover_side, cfg.max_cover_side),
                 fits={"left": fits_of("left", int(i[a])),
                       "right": [fits_of("right", int(j[a]))[(s + shift) % 4] for s in range(4)]})
             if P is None or not flat(geometry.project(rig.Q_L, P)[None],
                                      geometry.project(rig.Q_R, P)[None])[0]:
+                return False
+            if texture is not None and self._print_on_desk(rig, geometry.project(rig.Q_L, P),
+                                                           desk_plane, texture):
                 return False
             left[a], right[a] = geometry.project(rig.Q_L, P), geometry.project(rig.Q_R, P)
             completed[a] = True
@@ -689,14 +704,12 @@ class Detector:
         # the pairs that refined to a flat cover, the most edge pixels first; then those
         # with sides unseen that did not, completed in 3D when their turn comes (most are
         # over a book found by then)
-        could = np.array([cfg.complete.enabled and bool(
-            np.any(pool["left"].lines[i[a]] < 0) or np.any(pool["right"].lines[j[a]] < 0))
-            for a in range(len(i))], dtype=bool)
-        keep = np.flatnonzero(ok | could)
+        keep = np.flatnonzero(ok | np.array([completable(a) for a in range(len(i))], dtype=bool))
         score = pool["left"].n_f[i[keep]] + pool["right"].n_f[j[keep]]
         keep = keep[np.lexsort((-score, ~ok[keep]))]
         flat_ones = keep[ok[keep]]  # (first in keep) what a union is made of
-        area = np.array([cv2.contourArea(q.astype(np.float32)) for q in left[flat_ones]])
+        union_parts = left[flat_ones].copy()  # as refined: a completion below moves left[a]
+        area = np.array([cv2.contourArea(q.astype(np.float32)) for q in union_parts])
         out: list[tuple[Pair, BookDetection]] = []
 
         def free(a: int) -> bool:
@@ -706,7 +719,7 @@ class Detector:
         for rank, a in enumerate(keep.tolist()):
             if not free(a):
                 continue
-            if ok[a] and _is_union(rank, left[flat_ones], area, overlap):
+            if ok[a] and _is_union(rank, union_parts, area, overlap):
                 continue
             if not ok[a] and not (complete(a) and free(a)):
                 continue
@@ -718,7 +731,8 @@ class Detector:
                 heights = geometry.plane_distance(
                     desk_plane, geometry.triangulate_dlt(rig.Q_L, rig.Q_R, left[a], right[a]))
                 if (step < cfg.stereo.two_sided_evidence
-                        or np.ptp(heights) > cfg.stereo.two_sided_flatness) and not complete(a):
+                        or np.ptp(heights) > cfg.stereo.two_sided_flatness) and not (
+                        complete(a) and free(a)):
                     continue
             quality = float(min(pool["left"].support[i[a]].mean(),
                                 pool["right"].support[j[a]].mean()))
@@ -733,6 +747,22 @@ class Detector:
             taken["right"].append(pair.right)
             out.append((pair, book))
         return out
+
+    def _print_on_desk(self, rig: StereoRig, c_left: NDArray[np.float64],
+                       desk_plane: NDArray[np.float64], texture: dict[str, NDArray[np.float32]],
+                       plateau: float = 0.01) -> bool:
+        """Whether the print inside the left quad ``c_left`` (4, 2) matches between the
+        images best on the desk: one flat surface (best NCC ≥ ``sweep.min_ncc_to_move``)
+        whose best heights (within ``plateau`` of the best NCC) centre below
+        ``stereo.min_height``. A printed sheet's NCC is flat over the first millimetres, so
+        the check of step 2 (a clear gap to the corners' height) lets a sheet completed a
+        few millimetres up pass."""
+        sweep, _ = texture_height(texture["left"], texture["right"], rig.Q_L, rig.Q_R, c_left,
+                                  desk_plane, 0.0, self.cfg.sweep)
+        if sweep is None or sweep.best_ncc < self.cfg.sweep.min_ncc_to_move:
+            return False
+        top = sweep.heights[sweep.ncc >= sweep.best_ncc - plateau]
+        return float(top.mean()) < self.cfg.stereo.min_height
 
     def _from_height_map(self, rig: StereoRig, grads: dict[str, Gradients],
                          found: list[tuple[Pair, BookDetection]], desk_plane: NDArray[np.float64],

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -399,22 +399,22 @@ def refine_quad_both(grad: Gradients, corners: NDArray[np.float64], *,
     return inward, plain
 
 
+Fit = tuple[NDArray[np.float64], NDArray[np.float64]]  # a line: point, unit direction
+
+
 def refine_sides(grad: Gradients, corners: NDArray[np.float64], *,
-                 down: tuple[float, float] = (0.0, 1.0),
-                 ) -> list[tuple[NDArray[np.float64], NDArray[np.float64]] | None]:
+                 down: tuple[float, float] = (0.0, 1.0)) -> list[Fit | None]:
     """Each side of a quad (4, 2) refit as :func:`refine_quad` refits it (the cover edge
     looked for inside a side facing the camera): side s (corner s to s + 1) as a point and
     unit direction, or None where it cannot be refit."""
     return [_fit_side(grad, corners, s, down, both=False)[0] for s in range(4)]
 
 
-Fit = tuple[NDArray[np.float64], NDArray[np.float64]]  # a line: point, unit direction
-
-
 def _fit_side(grad: Gradients, corners: NDArray[np.float64], s: int, down: tuple[float, float],
-              *, both: bool) -> tuple[Fit | None, Fit | None, float]:
+              *, both: bool) -> tuple[Fit | None, Fit | None, Fit, float]:
     """Side ``s`` refit with the inward search for the cover edge and (``both``, where the
-    search moved it) without it, each None where it fails; and the search's shift (px)."""
+    search moved it) without it, each None where it fails; the segment the first was fit
+    from (its midpoint and direction: its fallback); the search's shift (px)."""
     a, b = corners[s], corners[(s + 1) % 4]
     d = (b - a) / np.linalg.norm(b - a)
     n_in = np.array([-d[1], d[0]])
@@ -424,9 +424,10 @@ def _fit_side(grad: Gradients, corners: NDArray[np.float64], s: int, down: tuple
     if -n_in @ np.asarray(down) > 0.05:
         across = float(np.max((corners - a) @ n_in))  # the quad's extent across this side
         shift = cover_edge_offset(grad, a, b, n_in, max_px=min(25.0, 0.2 * across))
-    inward = refine_segment(grad, a + shift * n_in, b + shift * n_in)
+    p, q = a + shift * n_in, b + shift * n_in
+    inward = refine_segment(grad, p, q)
     plain = refine_segment(grad, a, b) if both and shift != 0.0 else None
-    return inward, plain, shift
+    return inward, plain, (0.5 * (p + q), d), shift
 
 
 def _refit(grad: Gradients, corners: NDArray[np.float64], down: tuple[float, float], *,
@@ -434,17 +435,13 @@ def _refit(grad: Gradients, corners: NDArray[np.float64], down: tuple[float, flo
     """:func:`refine_quad`'s corners, and (``both``) those without the inward search."""
     inward, plain = [], []
     for s in range(4):
-        a, b = corners[s], corners[(s + 1) % 4]
-        fit_in, fit_plain, shift = _fit_side(grad, corners, s, down, both=both)
-        d = (b - a) / np.linalg.norm(b - a)
-        n_in = np.array([-d[1], d[0]])
-        if n_in @ (corners.mean(axis=0) - a) < 0:
-            n_in = -n_in
+        fit_in, fit_plain, fallback, shift = _fit_side(grad, corners, s, down, both=both)
         # a side that cannot be refit keeps the segment it was fit from
-        inward.append(fit_in if fit_in is not None else (0.5 * (a + b) + shift * n_in, d))
+        inward.append(fit_in if fit_in is not None else fallback)
         if both:
-            plain.append(inward[-1] if shift == 0.0 else
-                         fit_plain if fit_plain is not None else (0.5 * (a + b), d))
+            a, b = corners[s], corners[(s + 1) % 4]
+            plain.append(inward[-1] if shift == 0.0 else fit_plain if fit_plain is not None
+                         else (0.5 * (a + b), fallback[1]))
     return _join(inward, corners), (_join(plain, corners) if both else None)
 
 
