@@ -32,6 +32,11 @@ than the cover (on a side whose page block is hidden: where the block shows, its
 such an edge). And a side that stereo puts at the cover's height is the cover's edge or a
 print on it, not the desk a quad over-reached onto, so it is not pulled in. Where stereo
 cannot tell (a side along the epipolar lines, a fit that fails), the moves stand.
+
+:func:`complete_open` places the sides of a cover candidate that no image saw (a three-,
+two- or opposite-sided candidate of the segmentation) the same way: its seen sides give
+the cover's height and orientation, and each unseen side goes where both images show a
+step at once.
 """
 
 from __future__ import annotations
@@ -393,30 +398,14 @@ def _edge_height(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64
     (horizontal in the image) has no height: its sigma is large.
     """
     a, b = P[s], P[(s + 1) % 4]
-    m = 0.5 * (a + b)
-    n = np.cross(up, _unit(b - a))
-    rows, rhs = [], []
+    fits = {}
     for cam in ("left", "right"):
         pa, pb = geometry.project(Q[cam], np.array([a, b]))
         fit = refine_segment(grads[cam], pa, pb, half_width=5.0)
         if fit is None:
             return 0.0, np.inf
-        p, d = fit
-        line = np.array([-d[1], d[0], d[1] * p[0] - d[0] * p[1]])  # unit normal: pixels
-        q = line @ Q[cam]
-        w = float(Q[cam][2, :3] @ m + Q[cam][2, 3])
-        rows.append([q[:3] @ n / w, q[:3] @ up / w])  # px per metre of (offset, height)
-        rhs.append(-(q[:3] @ m + q[3]) / w)
-    A = np.array(rows)
-    if abs(np.linalg.det(A)) < 1e-12:
-        return 0.0, np.inf
-    inv = np.linalg.inv(A)
-    z_rel = float((inv @ np.array(rhs))[1])
-    return z_rel, float(px_sigma * np.linalg.norm(inv[1]))
-
-
-def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    return v / max(float(np.linalg.norm(v)), 1e-12)
+        fits[cam] = fit
+    return _line_height(fits, a, b, Q, up, px_sigma)
 
 
 def _line_height(fits: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]],
@@ -440,6 +429,10 @@ def _line_height(fits: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]
         return 0.0, np.inf
     inv = np.linalg.inv(A)
     return float((inv @ np.array(rhs))[1]), float(px_sigma * np.linalg.norm(inv[1]))
+
+
+def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    return v / max(float(np.linalg.norm(v)), 1e-12)
 
 
 @dataclass(frozen=True)
