@@ -48,7 +48,7 @@ from numpy.typing import NDArray
 
 from rovis import geometry
 from rovis.segment.edges import Gradients
-from rovis.segment.boundary import refine_sides
+from rovis.segment.boundary import Fit, refine_sides
 from rovis.segment.lines import intersect, refine_segment
 from rovis.sweep import _plane_frame, on_plane
 
@@ -408,7 +408,7 @@ def _edge_height(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64
     return _line_height(fits, a, b, Q, up, px_sigma)
 
 
-def _line_height(fits: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]],
+def _line_height(fits: dict[str, Fit],
                  a: NDArray[np.float64], b: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
                  up: NDArray[np.float64], px_sigma: float = 0.1) -> tuple[float, float]:
     """Height (metres, relative to the midpoint of ``a``-``b``) of the 3D line both images'
@@ -469,8 +469,7 @@ def complete_open(corners: dict[str, NDArray[np.float64]], seen: dict[str, NDArr
                   cfg: CompleteConfig = CompleteConfig(), *,
                   height_range: tuple[float, float] = (0.0, np.inf),
                   side_range: tuple[float, float] = (0.048, 0.45),
-                  fits: dict[str, list[tuple[NDArray[np.float64], NDArray[np.float64]] | None]]
-                  | None = None) -> NDArray[np.float64] | None:
+                  fits: dict[str, list[Fit | None]] | None = None) -> NDArray[np.float64] | None:
     """A cover candidate with sides unseen, completed to a rectangle on the desk's parallel.
 
     A three- or two-sided candidate (:func:`rovis.segment.quads.three_sided_quads`,
@@ -570,7 +569,7 @@ def complete_open(corners: dict[str, NDArray[np.float64]], seen: dict[str, NDArr
 
 
 def _place(h: float, corners: dict[str, NDArray[np.float64]],
-           fits: dict[str, list[tuple[NDArray[np.float64], NDArray[np.float64]] | None]],
+           fits: dict[str, list[Fit | None]],
            Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
            strength: dict[str, float], desk_plane: NDArray[np.float64],
            cfg: CompleteConfig, side_range: tuple[float, float], step: float | None = None,

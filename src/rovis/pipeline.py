@@ -35,7 +35,7 @@ from rovis.results import BookDetection, FrameResult, SegmentationInfo
 from rovis.segment import CascadeController, SegmentConfig, Segmentation, gradients
 from rovis.segment.edges import CANNY_LOW_RATIO, Gradients
 from rovis.segment.methods import METHODS, segment
-from rovis.segment.boundary import refine_quad, refine_quad_both, refine_sides, side_evidence
+from rovis.segment.boundary import Fit, refine_quad, refine_quad_both, refine_sides, side_evidence
 from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
 from rovis.stereo import (Match, StereoConfig, find_in_other_view, flat_rectangle, match_quads,
                           pool_pairs)
@@ -660,9 +660,9 @@ class Detector:
         # A pair with sides unseen whose refined guesses still make no flat cover: its
         # unseen sides placed in 3D instead, from the seen ones (rovis.extent.complete_open)
         completed = np.zeros(len(i), bool)
-        side_fits: dict[tuple[str, int], list[Any]] = {}
+        side_fits: dict[tuple[str, int], list[Fit | None]] = {}
 
-        def fits_of(cam: str, k: int) -> list[Any]:
+        def fits_of(cam: str, k: int) -> list[Fit | None]:
             # each candidate's seen sides fitted once, for every pair it is in
             if (cam, k) not in side_fits:
                 side_fits[cam, k] = [f if pool[cam].lines[k, s] >= 0 else None for s, f in
