@@ -293,17 +293,11 @@ def _side_scores(moved: NDArray[np.float64], a: int, b: int, Q: dict[str, NDArra
         pa = geometry.project(Q[cam], moved[:, a])
         pb = geometry.project(Q[cam], moved[:, b])
         pts = pa[:, None] + u[None, :, None] * (pb - pa)[:, None]  # (D, S, 2)
-        hit = _hits(grads[cam], pa[:, None], pts, thr, cfg.max_angle_deg, along=pb - pa)
-        ok &= hit.mean(axis=1) >= cfg.min_support
-        strength += _across(grads[cam], pts, pb - pa) / thr
+        edge, across = _edge(grads[cam], pa[:, None], pts, cfg.max_angle_deg,  # type: ignore[misc]
+                             along=pb - pa, centre=True)
+        ok &= (edge >= thr).mean(axis=1) >= cfg.min_support
+        strength += across.mean(axis=1) / thr  # the mean gradient across, on the line itself
     return ok, strength
-
-
-def _across(grad: Gradients, pts: NDArray[np.float64], along: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Mean gradient across lines (D,) sampled at ``pts`` (D, S, 2), direction ``along`` (D, 2)."""
-    t = along / np.maximum(np.linalg.norm(along, axis=-1, keepdims=True), 1e-9)
-    gx, gy = grad.sample(pts[..., 0], pts[..., 1])
-    return np.abs(gx * -t[:, None, 1] + gy * t[:, None, 0]).mean(axis=1)
 
 
 def _hits(grad: Gradients, start: NDArray[np.float64], pts: NDArray[np.float64], thr: float,
@@ -313,9 +307,12 @@ def _hits(grad: Gradients, start: NDArray[np.float64], pts: NDArray[np.float64],
 
 
 def _edge(grad: Gradients, start: NDArray[np.float64], pts: NDArray[np.float64],
-          max_angle_deg: float, along: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+          max_angle_deg: float, along: NDArray[np.float64] | None = None, *,
+          centre: bool = False,
+          ) -> NDArray[np.float64] | tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Gradient across a line at each point, best of the point and ±1 px across; 0 where the
-    gradient is more than ``max_angle_deg`` off the line's normal.
+    gradient is more than ``max_angle_deg`` off the line's normal. With ``centre``, also the
+    gradient across at the points themselves, whatever its angle (the same samples).
 
     Either points ``pts`` (N, 2) on one line through ``start`` (2,), or, with ``along``
     (D, 2), points (D, S, 2) on D lines of those directions (``start`` then unused).
@@ -326,12 +323,15 @@ def _edge(grad: Gradients, start: NDArray[np.float64], pts: NDArray[np.float64],
     n = np.stack([-direction[..., 1], direction[..., 0]], axis=-1)
     cos_max = np.cos(np.radians(max_angle_deg))
     best = np.zeros(pts.shape[:-1])
+    at_points = best
     for off in (-1.0, 0.0, 1.0):
         q = pts + off * n
         gx, gy = grad.sample(q[..., 0], q[..., 1])
         across = np.abs(gx * n[..., 0] + gy * n[..., 1])
         best = np.maximum(best, np.where(across >= cos_max * np.hypot(gx, gy), across, 0.0))
-    return best
+        if off == 0.0:
+            at_points = across
+    return (best, at_points) if centre else best
 
 
 def _on_desk(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
