@@ -363,3 +363,53 @@ def test_no_edge_where_a_side_is_guessed_gives_no_cover(lone_book):
     # a height outside the range asked for
     assert _complete(P, _side_moved(P, 2, 0.01), P, (2,), lone_book,
                      height_range=(0.03, 0.10)) is None
+
+
+def _with_near_side_on_its_foot(P, Q):
+    """The projection by ``Q`` of cover ``P`` (4, 3) with the side facing the camera taken at
+    its page block's foot (the side dropped onto the desk, z = 0), where a segmentation
+    may take it; and that side's index."""
+    from rovis.segment.lines import intersect
+
+    q = geometry.project(Q, P)
+    centre = q.mean(axis=0)
+
+    def outward_down(k):  # how far down the image side k's outward normal points
+        d = q[(k + 1) % 4] - q[k]
+        n = np.array([d[1], -d[0]]) / np.linalg.norm(d)
+        if n @ (0.5 * (q[k] + q[(k + 1) % 4]) - centre) < 0:
+            n = -n
+        return n[1]
+
+    s = max(range(4), key=outward_down)
+    a, b = s, (s + 1) % 4
+    foot = geometry.project(Q, P[[a, b]] * [1.0, 1.0, 0.0])
+    d_foot = (foot[1] - foot[0]) / np.linalg.norm(foot[1] - foot[0])
+    out = q.copy()
+    for k, other in ((a, (a - 1) % 4), (b, (b + 1) % 4)):  # along the lateral sides
+        lateral = (q[k] - q[other]) / np.linalg.norm(q[k] - q[other])
+        out[k] = intersect(foot[0], d_foot, q[other], lateral)
+    return out, s
+
+
+def test_a_side_facing_the_camera_is_settled_on_the_edge_both_images_share(lone_book):
+    # the right image's near side on the page block's foot, the left's on the cover edge:
+    # 4-10 px of disparity apart, the cover centimetres low on that side
+    P, Q, grads, desk, _ = lone_book
+    truth = {cam: geometry.project(Q[cam], P) for cam in Q}
+    corners = dict(truth)
+    corners["right"], _ = _with_near_side_on_its_foot(P, Q["right"])
+    before = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
+    assert np.linalg.norm(before - P, axis=1).max() > 0.01
+    got = extent.settle_facing_sides(corners, Q, grads, desk)
+    assert got is not None
+    np.testing.assert_allclose(got["left"], truth["left"], atol=0.1)  # kept
+    assert np.abs(got["right"] - truth["right"]).max() < 1.0  # px: on the cover edge
+    after = geometry.triangulate(Q["left"], Q["right"], got["left"], got["right"])
+    assert np.linalg.norm(after - P, axis=1).max() < 0.004
+
+
+def test_sides_both_images_agree_on_stay(lone_book):
+    P, Q, grads, desk, _ = lone_book
+    truth = {cam: geometry.project(Q[cam], P) for cam in Q}
+    assert extent.settle_facing_sides(truth, Q, grads, desk) is None

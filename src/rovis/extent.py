@@ -48,7 +48,7 @@ from numpy.typing import NDArray
 
 from rovis import geometry
 from rovis.segment.edges import Gradients
-from rovis.segment.boundary import Fit, refine_sides
+from rovis.segment.boundary import Fit, inner_edges, refine_sides
 from rovis.segment.lines import intersect, refine_segment
 from rovis.sweep import _plane_frame, on_plane
 
@@ -429,6 +429,132 @@ def _line_height(fits: dict[str, Fit],
         return 0.0, np.inf
     inv = np.linalg.inv(A)
     return float((inv @ np.array(rhs))[1]), float(px_sigma * np.linalg.norm(inv[1]))
+
+
+@dataclass(frozen=True)
+class FacingConfig:
+    """Choosing, for a cover's sides facing the camera, which edge of the page block below
+    each is the cover's in both images (:func:`settle_facing_sides`; metres unless noted).
+
+    ``enabled`` turns it on; the cover's height is the median of its other sides' stereo
+    heights placed to within ``max_sigma`` (for a 0.1 px error of each image's line); a
+    facing side is settled where its two images' lines, back-projected onto the cover's
+    plane, lie more than ``tol`` apart across it, onto edges that lie within ``tol``;
+    candidate edges are looked for up to ``max_px`` pixels (and a fifth of the quad's
+    width) either way across it.
+    """
+
+    enabled: bool = True
+    tol: float = 0.002
+    max_sigma: float = 0.004
+    max_px: float = 25.0
+
+
+def settle_facing_sides(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],
+                        grads: dict[str, Gradients], desk_plane: NDArray[np.float64],
+                        cfg: FacingConfig = FacingConfig(), *,
+                        down: tuple[float, float] = (0.0, 1.0),
+                        ) -> dict[str, NDArray[np.float64]] | None:
+    """A stereo pair's corners (4, 2) per camera with each side facing the camera moved,
+    in one image or both, onto the page-block edge that puts it at the cover's height;
+    None if no side moves.
+
+    Below a side facing the camera the page block shows a stack of parallel edges: its
+    foot on the desk, its boards, the rows of its pages, and the cover's own edge above
+    them (:func:`rovis.segment.boundary.inner_edges`). Each image's segmentation picks one
+    on its own, and where they pick different ones the side's disparity is off by pixels:
+    the cover comes out centimetres low on that side (a 2 cm book alone on the desk, found
+    1 cm low). The cover's other sides have no block below them and fix its height (the
+    median of those stereo places well). On the cover's plane at that height, both images'
+    lines of a side must meet; where they do not (within ``cfg.tol``), one image's line is
+    kept and the other moved to the edge it offers (either way across the side) that meets
+    it, the smallest such move. A side along the epipolar lines has no height of its own,
+    but two different edges of its block still back-project apart on the plane.
+    """
+    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+    offset = float(desk_plane[3] / np.linalg.norm(desk_plane[:3]))
+    P = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
+    if not np.all(np.isfinite(P)):
+        return None
+    lines = {cam: [(0.5 * (c[s] + c[(s + 1) % 4]), _unit(c[(s + 1) % 4] - c[s])) for s in range(4)]
+             for cam, c in corners.items()}
+
+    def inward(cam: str, s: int) -> NDArray[np.float64]:
+        c = corners[cam]
+        d = lines[cam][s][1]
+        n = np.array([-d[1], d[0]])
+        return n if n @ (c.mean(axis=0) - lines[cam][s][0]) > 0 else -n
+
+    facing = [any(-inward(cam, s) @ np.asarray(down) > 0.05 for cam in corners) for s in range(4)]
+    ref = []
+    for s in range(4):
+        if not facing[s]:
+            a, b = P[s], P[(s + 1) % 4]
+            z, sigma = _line_height({cam: lines[cam][s] for cam in corners}, a, b, Q, up)
+            if sigma <= cfg.max_sigma:
+                ref.append(float(up @ (0.5 * (a + b)) + offset) + z)
+    if not ref:
+        return None
+    h_ref = float(np.median(ref))
+    origin = -offset * up + h_ref * up  # a point of the cover plane
+
+    def across(fit: Fit, cam: str, m: NDArray[np.float64], n: NDArray[np.float64]) -> float:
+        # where the image line, back-projected (a plane through the camera), meets the
+        # cover plane: its offset from m along n (in the cover plane, across the side)
+        p, d = fit
+        line = np.array([-d[1], d[0], d[1] * p[0] - d[0] * p[1]]) @ Q[cam]  # its plane (4,)
+        denom = float(line[:3] @ n)
+        return float("nan") if abs(denom) < 1e-12 else -float(line[:3] @ m + line[3]) / denom
+
+    moved = False
+    for s in range(4):
+        if not facing[s]:
+            continue
+        a, b = P[s], P[(s + 1) % 4]
+        e = _unit(b - a - ((b - a) @ up) * up)
+        n = np.cross(up, e)
+        mid = 0.5 * (a + b)
+        m = mid - ((mid - origin) @ up) * up  # the side's midpoint on the cover plane
+        now = [across(lines[cam][s], cam, m, n) for cam in ("left", "right")]
+        if not np.all(np.isfinite(now)) or abs(now[0] - now[1]) <= cfg.tol:
+            continue
+        options: dict[str, list[tuple[float, Fit]]] = {}
+        for cam in ("left", "right"):
+            c, n_in = corners[cam], inward(cam, s)
+            pa, pb = c[s], c[(s + 1) % 4]
+            reach = min(cfg.max_px, 0.2 * float(np.max((c - pa) @ n_in)))
+            shifts = [*inner_edges(grads[cam], pa, pb, n_in, max_px=reach),
+                      *(-o for o in inner_edges(grads[cam], pa, pb, -n_in, max_px=reach))]
+            options[cam] = [(0.0, lines[cam][s])]
+            for o in shifts:
+                fit = refine_segment(grads[cam], pa + o * n_in, pb + o * n_in, half_width=1.5)
+                if fit is not None:
+                    options[cam].append((abs(o), fit))
+        # the pair of edges that meet on the cover plane, one image's side kept where it
+        # is, the smallest move
+        best, best_key = None, (np.inf, np.inf)
+        for i, (o_l, fit_l) in enumerate(options["left"]):
+            for j, (o_r, fit_r) in enumerate(options["right"]):
+                if (i == 0) == (j == 0):
+                    continue
+                gap = abs(across(fit_l, "left", m, n) - across(fit_r, "right", m, n))
+                if gap <= cfg.tol and (o_l + o_r, gap) < best_key:
+                    best, best_key = (fit_l, fit_r), (o_l + o_r, gap)
+        if best is not None:
+            lines["left"][s], lines["right"][s] = best
+            moved = True
+    if not moved:
+        return None
+    out = {}
+    for cam, c in corners.items():
+        new = c.copy()
+        for k in range(4):  # corner k joins side k-1 and side k
+            p = intersect(*lines[cam][k - 1], *lines[cam][k])
+            if p is None or np.linalg.norm(p - c[k]) > 40.0:
+                return None
+            new[k] = p
+        out[cam] = new
+    return out
 
 
 def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -28,7 +28,8 @@ from numpy.typing import NDArray
 
 from rovis import geometry, marker
 from rovis.calib import StereoRig
-from rovis.extent import CompleteConfig, ExtentConfig, complete_open, fit_pair_extent
+from rovis.extent import (CompleteConfig, ExtentConfig, FacingConfig, complete_open,
+                          fit_pair_extent, settle_facing_sides)
 from rovis.heightmap import HeightMapConfig, height_map, raised_covers, snap_sides
 from rovis.imageio import to_gray_u8
 from rovis.results import BookDetection, FrameResult, SegmentationInfo
@@ -130,6 +131,7 @@ class DetectConfig:
     stereo: StereoConfig = field(default_factory=StereoConfig)
     extent: ExtentConfig = field(default_factory=ExtentConfig)
     complete: CompleteConfig = field(default_factory=CompleteConfig)
+    facing: FacingConfig = field(default_factory=FacingConfig)
     sweep: SweepConfig = field(default_factory=SweepConfig)
     heightmap: HeightMapConfig = field(default_factory=HeightMapConfig)
 
@@ -902,6 +904,15 @@ class Detector:
                     for cam in Q}
         out, moved, before = [], [], {}
         for pair, book in found:
+            if self.cfg.facing.enabled:  # the page block's edge that is the cover's, in both
+                settled = settle_facing_sides({"left": pair.left, "right": pair.right}, Q,
+                                              grads, desk_plane, self.cfg.facing)
+                if settled is not None:
+                    trial, fitted, _ = self._reconstruct_or_why(
+                        rig, replace(pair, left=settled["left"], right=settled["right"]),
+                        desk_plane, texture)
+                    if fitted is not None:
+                        pair, book = trial, fitted
             new = fit_pair_extent({"left": pair.left, "right": pair.right}, Q, grads, strength,
                                   desk_plane, self.cfg.extent)
             if new is not None:

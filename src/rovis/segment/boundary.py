@@ -492,15 +492,30 @@ def cover_edge_offset(grad: Gradients, a: NDArray[np.float64], b: NDArray[np.flo
     """How far inside side ``a``–``b`` (px, along ``n_in``) the cover edge lies; 0 if here
     (−1 where the line lies 2–3 px inside the outer edge and the cover edge between them).
 
+    The nearest of :func:`inner_edges`: the derivative across the side is sampled along it
+    at offsets from −3 px (outside) to ``max_px`` inside (a page block is at most ~25 px
+    wide at these distances; a printed frame further in must not be taken for it).
+    """
+    inner = inner_edges(grad, a, b, n_in, max_px=max_px, min_ratio=min_ratio,
+                        min_consistency=min_consistency)
+    return inner[0] if inner else 0.0
+
+
+def inner_edges(grad: Gradients, a: NDArray[np.float64], b: NDArray[np.float64],
+                n_in: NDArray[np.float64], *, max_px: float = 25.0, min_ratio: float = 0.15,
+                min_consistency: float = 0.6) -> list[float]:
+    """The edges inside side ``a``–``b`` that may be a cover's edge above its page block:
+    offsets (px along ``n_in``, from the side, nearest first; empty where there are none).
+
     The derivative across the side is sampled along it at offsets from −3 px (outside) to
-    ``max_px`` inside (a page block is at most ~25 px wide at these distances; a printed
-    frame further in must not be taken for it). An inner edge counts
-    when the median profile peaks there with at least ``min_ratio`` of the outer edge's
-    strength, and at least ``min_consistency`` of the samples along the side agree.
+    ``max_px`` inside. An inner edge counts when the median profile peaks there with at
+    least ``min_ratio`` of the outer edge's strength (the detected edge, within ±3 px of
+    the side), and at least ``min_consistency`` of the samples along the side agree. A
+    page block shows several: its pages' rows, its boards' edges, the cover's own.
     """
     length = float(np.linalg.norm(b - a))
     if length < 20:
-        return 0.0
+        return []
     d = (b - a) / length
     t = np.arange(0.15 * length, 0.85 * length, 2.0)
     offsets = np.arange(-3.0, max_px + 0.5, 1.0)
@@ -512,14 +527,14 @@ def cover_edge_offset(grad: Gradients, a: NDArray[np.float64], b: NDArray[np.flo
     outer = int(np.argmax(profile[:7]))  # the detected edge, within ±3 px of the line
     peak = profile[outer]
     if peak <= 0:
-        return 0.0
+        return []
     inner = np.arange(outer + 2, len(offsets) - 1)
     is_max = (profile[inner] >= profile[inner - 1]) & (profile[inner] >= profile[inner + 1])
-    strong = inner[is_max & (profile[inner] >= min_ratio * peak)]
-    for k in strong:  # the nearest qualifying inner edge
+    found = []
+    for k in inner[is_max & (profile[inner] >= min_ratio * peak)]:
         valley = profile[outer:k].min()
         level = valley + 0.5 * (profile[k] - valley)  # half way up the inner peak
         if np.mean(g[:, k - 1:k + 2].max(axis=1) >= level) >= min_consistency:
             # from the side (not from the outer edge, which may lie up to 3 px off it)
-            return float(offsets[k])
-    return 0.0
+            found.append(float(offsets[k]))
+    return found
