@@ -99,14 +99,17 @@ class DetectConfig:
     fit_rectangle : bool
         Replace the four separately triangulated corners by one 3D rectangle fitted to both
         images' corners (:func:`rovis.geometry.fit_rectangle`; beyond the paper).
-    segment, stereo, extent, complete, sweep
+    segment, stereo, extent, complete, facing, sweep
         :class:`SegmentConfig`, :class:`StereoConfig`, :class:`ExtentConfig`,
-        :class:`CompleteConfig`, :class:`SweepConfig`.
+        :class:`CompleteConfig`, :class:`FacingConfig`, :class:`SweepConfig`.
         ``extent``: moving each cover's sides to its edges in both images
         (:mod:`rovis.extent`; beyond the paper; needs the desk plane). ``complete``: a
         pair of candidates with sides unseen, completed to a rectangle in 3D where
         refining each image alone gives no flat cover (:func:`rovis.extent.complete_open`;
-        beyond the paper; needs the desk plane). ``sweep``: each
+        beyond the paper; needs the desk plane). ``facing``: a side facing the camera
+        settled on the page-block edge both images share, before the extent step
+        (:func:`rovis.extent.settle_facing_sides`; beyond the paper; needs the desk
+        plane). ``sweep``: each
         cover's height tested against its print, and a printed cover found in one image
         only placed in the other by its print (:mod:`rovis.sweep`; beyond the paper; needs
         the desk plane; the placing also ``stereo.transfer``).
