@@ -5,7 +5,8 @@ Per camera (DESIGN §4):
 1. every planar face (floor, desk, marker, sheets, book covers and sides, mugs, pens) is
    drawn far to near into a supersampled *ideal pinhole* canvas — textured faces by the
    homography texture → image (``cv2.warpPerspective`` limited to the face's bounding box),
-   plain ones by a filled polygon — with an id buffer beside it;
+   plain ones by a constant — over the canvas pixels whose centres lie inside it
+   (:func:`_convex_mask`), with an id buffer beside it;
 2. the canvas is averaged down (``INTER_AREA``) and lit: an illuminance map from the light's
    spatial profile, Lambert factors per face, cast shadows (each object's outline projected
    from the light onto the desk, blurred by the penumbra), contact shadows, specular
@@ -234,12 +235,14 @@ class _Canvas:
 
     def flat(self, P_world: NDArray[np.float64], value: tuple[float, float], face_id: int) -> None:
         """Fill the convex polygon ``P_world`` (N, 3) with a constant (layer0, layer1)."""
-        pts = np.round(self.project(P_world) * (1 << _SHIFT)).astype(np.int32)
-        if np.abs(pts).max() > 2**30:
+        px = self.project(P_world)
+        box = self._bbox(px) if np.abs(px).max() < 2**26 else None
+        if box is None:
             return
-        cv2.fillConvexPoly(self.layers, pts, (float(value[0]), float(value[1]), 0.0, 0.0),
-                           cv2.LINE_8, _SHIFT)
-        cv2.fillConvexPoly(self.ids, pts, int(face_id), cv2.LINE_8, _SHIFT)
+        x0, y0, x1, y1 = box
+        m = _convex_mask((y1 - y0, x1 - x0), px - np.array([x0, y0], dtype=np.float64))
+        self.layers[y0:y1, x0:x1][m] = np.array(value, np.float32)
+        self.ids[y0:y1, x0:x1][m] = face_id
 
     def polyline(self, P_world: NDArray[np.float64], width_m: float, value: tuple[float, float],
                  face_id: int) -> None:
@@ -272,10 +275,7 @@ class _Canvas:
         size = (x1 - x0, y1 - y0)
         warped = cv2.warpPerspective(tex, H, size, flags=cv2.INTER_LINEAR,
                                      borderMode=cv2.BORDER_REPLICATE)
-        mask = np.zeros((size[1], size[0]), np.uint8)
-        cv2.fillConvexPoly(mask, np.round((dst - off) * (1 << _SHIFT)).astype(np.int32), 1,
-                           cv2.LINE_8, _SHIFT)
-        m = mask.view(bool)
+        m = _convex_mask((size[1], size[0]), dst - off)
         region = self.layers[y0:y1, x0:x1]
         if value[0]:
             layer0 = warped * np.float32(value[0])
@@ -293,6 +293,31 @@ class _Canvas:
             region[..., 0][m] = 0.0
         region[..., 1][m] = warped[m] * np.float32(value[1]) if value[1] else 0.0
         self.ids[y0:y1, x0:x1][m] = face_id
+
+
+def _convex_mask(shape: tuple[int, int], px: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """The pixels (``shape`` = (h, w)) whose centres (integer coordinates) lie inside the
+    convex polygon ``px`` (N, 2): a centre-sampled fill, exact to the sub-pixel position of
+    every edge. (``cv2.fillConvexPoly`` also fills the pixels an edge only touches, each
+    face half a canvas pixel too large on every side: a cover edge rendered ~0.25 px
+    outward at 2× supersampling.)"""
+    h, w = shape
+    y = np.arange(h, dtype=np.float64)
+    lo, hi = np.full(h, -np.inf), np.full(h, np.inf)  # each row's inside span in x
+    nxt = np.roll(px, -1, axis=0)
+    orient = 1.0 if np.sum(px[:, 0] * nxt[:, 1] - nxt[:, 0] * px[:, 1]) >= 0 else -1.0
+    for a, b in zip(px, nxt):
+        # inside edge a→b: orient·((b−a) × (p−a)) ≥ 0, i.e. k·x ≤ c(y) for each row y
+        k = orient * (b[1] - a[1])
+        c = orient * ((b[0] - a[0]) * (y - a[1]) + (b[1] - a[1]) * a[0])
+        if k > 0:
+            hi = np.minimum(hi, c / k)
+        elif k < 0:
+            lo = np.maximum(lo, c / k)
+        else:
+            hi = np.where(c >= 0, hi, -np.inf)  # a horizontal edge: rows in or out
+    x = np.arange(w, dtype=np.float64)
+    return (x[None, :] >= lo[:, None]) & (x[None, :] <= hi[:, None])
 
 
 # --------------------------------------------------------------------------- objects
