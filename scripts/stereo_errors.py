@@ -105,8 +105,12 @@ def main() -> None:
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="a DetectConfig setting, as rovis eval --set")
     args = ap.parse_args()
-    scenes = [str(s) for s in list_scenes(args.dataset)[:args.n]]
-    calib = f"{args.dataset}/calib.yaml"
+    try:
+        scenes = [str(s) for s in list_scenes(args.dataset)[:args.n]]
+        calib = f"{args.dataset}/calib.yaml"
+        load_calibration(calib)  # a broken calibration: said once, before any work
+    except (OSError, ValueError) as e:
+        raise SystemExit(f"stereo_errors: {e}") from None
     jobs = [(s, calib, args.set) for s in scenes]
     rows: list[dict] = []  # type: ignore[type-arg]
     with ProcessPoolExecutor(max(1, args.workers)) as pool:
