@@ -38,6 +38,7 @@ from rovis.segment.edges import CANNY_LOW_RATIO, Gradients
 from rovis.segment.methods import METHODS, segment
 from rovis.segment.boundary import Fit, refine_quad, refine_quad_both, refine_sides, side_evidence
 from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
+from rovis.split import SplitConfig, split_union
 from rovis.stereo import (Match, StereoConfig, find_in_other_view, flat_rectangle, match_quads,
                           pool_pairs)
 from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pass, on_plane,
@@ -137,6 +138,7 @@ class DetectConfig:
     facing: FacingConfig = field(default_factory=FacingConfig)
     sweep: SweepConfig = field(default_factory=SweepConfig)
     heightmap: HeightMapConfig = field(default_factory=HeightMapConfig)
+    split: SplitConfig = field(default_factory=SplitConfig)
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -397,6 +399,11 @@ class Detector:
         if (self.cfg.extent.grow or self.cfg.extent.shrink) and desk_plane is not None:
             found = self._fit_extents(rig, segs, grads, found, desk_plane, texture)
             lap("extent")
+        # beyond the paper: two touching books taken for one cover, split at their seam
+        # (after the extent step, which would grow each part over the other again)
+        if self.cfg.split.enabled and desk_plane is not None:
+            found = self._split_unions(rig, segs, grads, found, desk_plane, texture)
+            lap("split")
         # last, since the extent step may grow a piece of a cover to the whole cover
         found, small = self._without_small(found)
         if small:
@@ -952,6 +959,39 @@ class Detector:
                         out[i][0].left, out[k][0].left) > self.cfg.stereo.transfer_max_overlap:
                     drop.add(k)
         return [item for k, item in enumerate(out) if k not in drop]
+
+    def _split_unions(self, rig: StereoRig, segs: dict[str, Segmentation],
+                      grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
+                      desk_plane: NDArray[np.float64],
+                      texture: dict[str, NDArray[np.float32]] | None = None,
+                      ) -> list[tuple[Pair, BookDetection]]:
+        """Each book that is two touching books' outline replaced by the two
+        (:func:`rovis.split.split_union`), where both parts pass the pose checks and their
+        heights differ by ``split.min_step`` or more; the parts keep the pair's source,
+        ``quality`` and ``error_px``."""
+        Q = {"left": rig.Q_L, "right": rig.Q_R}
+        strength = {cam: CANNY_LOW_RATIO * (segs[cam].T_H or self.cfg.segment.open_T_H)
+                    for cam in Q}
+        out: list[tuple[Pair, BookDetection]] = []
+        for pair, book in found:
+            parts = split_union({"left": pair.left, "right": pair.right}, Q, grads, strength,
+                                desk_plane, self.cfg.split)
+            if parts is not None:
+                made = []
+                for part in parts:
+                    shift = int(np.argmin(part["left"].sum(axis=1)))  # eq. 1 order, left
+                    trial = replace(pair, left=np.roll(part["left"], -shift, axis=0),
+                                    right=np.roll(part["right"], -shift, axis=0))
+                    trial, fitted, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
+                    made.append((trial, fitted))
+                # the parts, placed in 3D each on its own, must keep the step that split them
+                if all(fitted is not None for _, fitted in made) and abs(
+                        made[0][1].pose.size[2] - made[1][1].pose.size[2]  # type: ignore[union-attr]
+                ) >= self.cfg.split.min_step:
+                    out += made  # type: ignore[arg-type]
+                    continue
+            out.append((pair, book))
+        return out
 
     def _without_prints(self, found: list[tuple[Pair, BookDetection]], *, inside: float = 0.9,
                         max_off_plane: float = 0.005,

@@ -1,0 +1,253 @@
+"""Two touching books taken for one cover, split along the seam between them (beyond the paper).
+
+Books laid flush side by side, of nearly one width, make one quadrilateral: the outline of
+both. Where the seam between them shows only faintly (two covers of one brightness), no
+candidate quad of either book exists, and the union passes every check of a cover: it is
+book-sized, nearly flat (two books a centimetre apart in height tilt a 30 cm union by 2°)
+and on the desk. The robot would reach for the middle of two books.
+
+Two cues tell the union from one book with a printed band across it, both from stereo:
+
+- *the seam*: a line across the quad, parallel to two of its sides, where both images show
+  a step along most of its length (:func:`seam_profile`), at the same place on the cover;
+- *the step in height*: each of the two other sides is two books' edges, one each side of
+  the seam; fitted in both images on its own, each half placed in 3D
+  (:func:`rovis.extent._edge_height`), the halves stand at heights that differ by at least
+  ``min_step``. A band printed on one cover leaves both halves at one height.
+
+A side facing the camera is not measured (the page block below it shows edges of every
+height between the desk and the cover), nor one along the epipolar lines (stereo cannot
+place it). Where both sides are measured they must agree: a side may run along a taller
+neighbour and take that one's edge. Two touching books of one height are not told apart
+(their seam alone is a printed band's), nor are two whose seam shows no step: the nearer
+book the taller and both covers of one brightness, it hides the seam behind its top edge.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rovis import geometry
+from rovis.extent import _edge_height, _unit
+from rovis.segment.edges import Gradients
+from rovis.segment.lines import intersect, refine_segment
+
+
+@dataclass(frozen=True)
+class SplitConfig:
+    """Splitting a cover that is two touching books (:func:`split_union`; metres unless
+    noted).
+
+    ``enabled`` turns it on; each part must be at least ``min_part`` long across the seam
+    (the smallest book's side); the seam must show a step (the derivative across it at
+    least each image's Canny low threshold) along ``min_share`` of its middle, at the best
+    offset within ``reach_px`` pixels of each image's line, and the two images' seams must
+    lie within ``agree`` of each other along the cover; the two halves of a side (each
+    placed by stereo to within ``max_sigma``) must stand at least ``min_step`` apart in
+    height, and where both sides are measured, their halves within ``max_spread`` of each
+    other's.
+    """
+
+    enabled: bool = True
+    min_part: float = 0.085
+    min_share: float = 0.7
+    reach_px: float = 2.0
+    agree: float = 0.006
+    min_step: float = 0.005
+    max_sigma: float = 0.004
+    max_spread: float = 0.004
+
+
+def seam_profile(grad: Gradients, corners: NDArray[np.float64], k: int, t: NDArray[np.float64],
+                 threshold: float, *, reach_px: float = 2.0, trim: float = 0.15,
+                 ) -> NDArray[np.float64]:
+    """For lines across quad ``corners`` (4, 2) parallel to its sides ``k`` and ``k + 2``,
+    the share of each line's middle where the derivative across it reaches ``threshold``.
+
+    The line at ``t`` joins the points a fraction ``t`` of the way from side ``k`` to side
+    ``k + 2`` along the two other sides; it is sampled every pixel over its middle (``trim``
+    of its length left out at either end, where the corners' own edges are), at offsets
+    within ``reach_px`` along the cover; the best offset counts.
+
+    Returns
+    -------
+    share, offset : ndarray, shape (len(t),) each
+        The share in [0, 1] at each line's best offset, and that offset (px, along
+        ``(-d_y, d_x)`` for ``d`` the mean direction from side ``k + 3``'s end of the lines
+        to side ``k + 1``'s).
+    """
+    c = np.asarray(corners, dtype=np.float64)
+    a0, b0 = c[k], c[(k + 1) % 4]  # side k runs a0 -> b0
+    a1, b1 = c[(k + 3) % 4], c[(k + 2) % 4]  # side k + 2, the same way round
+    t = np.asarray(t, dtype=np.float64)
+    p = a0 + t[:, None] * (a1 - a0)  # (T, 2): the seam's ends
+    q = b0 + t[:, None] * (b1 - b0)
+    length = float(np.median(np.linalg.norm(q - p, axis=1)))
+    s = np.arange(trim * length, (1 - trim) * length, 1.0) / max(length, 1e-9)
+    if len(s) == 0:
+        return np.zeros(len(t)), np.zeros(len(t))
+    d = _unit(0.5 * (b0 + b1) - 0.5 * (a0 + a1))  # along the seam, on average
+    n = np.array([-d[1], d[0]])
+    offsets = np.arange(-reach_px, reach_px + 1e-9, 0.5)
+    pts = p[:, None, :] + s[None, :, None] * (q - p)[:, None, :]  # (T, S, 2)
+    x = pts[:, None, :, 0] + offsets[None, :, None] * n[0]  # (T, O, S)
+    y = pts[:, None, :, 1] + offsets[None, :, None] * n[1]
+    gx, gy = grad.sample(x, y)
+    share = (np.abs(gx * n[0] + gy * n[1]) >= threshold).mean(axis=2)  # (T, O)
+    best = np.argmax(share, axis=1)
+    return share[np.arange(len(t)), best], offsets[best]
+
+
+def split_union(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],
+                grads: dict[str, Gradients], strength: dict[str, float],
+                desk_plane: NDArray[np.float64], cfg: SplitConfig = SplitConfig(), *,
+                down: tuple[float, float] = (0.0, 1.0),
+                ) -> tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]] | None:
+    """A stereo pair's cover (corners (4, 2) per camera, eq. 1 order) split into two
+    touching books' covers, or None where it is one book.
+
+    For each pair of opposite sides, the seam is the line parallel to them with the most
+    step in both images (:func:`seam_profile`), a part at least ``cfg.min_part`` long on
+    either side; each image's seam line is fitted to its edge (:func:`refine_segment`) and
+    cut by the other two sides for the parts' corners. The parts are kept when those sides
+    step in height at the seam by ``cfg.min_step`` or more (see the module's notes).
+
+    Parameters
+    ----------
+    corners : dict camera -> ndarray, shape (4, 2)
+        Ideal pixels in each image.
+    Q : dict camera -> ndarray, shape (3, 4)
+    grads : dict camera -> Gradients
+    strength : dict camera -> float
+        The derivative a seam's step must reach (the Canny low threshold), per camera.
+    desk_plane : ndarray, shape (4,)
+        ``[nx, ny, nz, d]`` (world, normal up).
+    down : (float, float)
+        The image direction towards the camera's side of the desk: a side whose outward
+        normal points this way faces the camera.
+
+    Returns
+    -------
+    (dict, dict) or None
+        Each part's corners (4, 2) per camera, in the cover's corner order.
+    """
+    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+    P = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
+    if not np.all(np.isfinite(P)):
+        return None
+    best = None
+    for k in (0, 1):
+        # across the seam: from side k to side k + 2, along sides k + 1 and k + 3
+        span = 0.5 * (np.linalg.norm(P[(k + 2) % 4] - P[(k + 1) % 4])
+                      + np.linalg.norm(P[k] - P[(k + 3) % 4]))
+        if span < 2 * cfg.min_part:
+            continue
+        t = np.arange(cfg.min_part, span - cfg.min_part + 1e-9, 0.001) / span
+        found = {cam: seam_profile(grads[cam], corners[cam], k, t, strength[cam],
+                                   reach_px=cfg.reach_px) for cam in corners}
+        prof = {cam: share for cam, (share, _) in found.items()}
+        # the images' seams may lie a few millimetres apart along the cover (the
+        # interpolation is in each image, the perspective differs a little): the best of
+        # the right's within ``agree`` of each of the left's
+        w = max(int(round(cfg.agree / 0.001)), 0)
+        right = np.array([prof["right"][max(i - w, 0):i + w + 1].max() for i in range(len(t))])
+        score = np.minimum(prof["left"], right)
+        i = int(np.argmax(score))
+        if score[i] >= cfg.min_share and (best is None or score[i] > best[0]):
+            # of the right's near-best, the nearest the left's (the same edge of a page
+            # block's face, not its other one)
+            window = np.arange(max(i - w, 0), min(i + w + 1, len(t)))
+            near_best = window[prof["right"][window] >= right[i] - 0.05]
+            j = int(near_best[np.argmin(np.abs(near_best - i))])
+            best = (float(score[i]), k, {"left": (t[i], found["left"][1][i]),
+                                         "right": (t[j], found["right"][1][j])})
+    if best is None:
+        return None
+    _, k, t_seam = best
+    parts: tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]] = ({}, {})
+    for cam, c in corners.items():
+        seam = _seam_corners(grads[cam], c, k, *t_seam[cam])
+        if seam is None:
+            return None
+        near, far = c.copy(), c.copy()  # the part at side k, the part at side k + 2
+        near[(k + 3) % 4], near[(k + 2) % 4] = seam
+        far[k], far[(k + 1) % 4] = seam
+        parts[0][cam], parts[1][cam] = near, far
+    if not _steps_in_height(corners, parts, k, Q, grads, up, cfg, down=down):
+        return None
+    return parts
+
+
+def _seam_corners(grad: Gradients, c: NDArray[np.float64], k: int, t: float, offset: float,
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """The seam's ends in one image: the line at ``t``, moved by ``offset`` across it
+    (:func:`seam_profile`'s best) and fitted to its edge where that succeeds (within 1 px),
+    cut by sides ``k + 3`` and ``k + 1``; None where they do not cut it."""
+    p = c[k] + t * (c[(k + 3) % 4] - c[k])
+    q = c[(k + 1) % 4] + t * (c[(k + 2) % 4] - c[(k + 1) % 4])
+    d = _unit(0.5 * (c[(k + 1) % 4] + c[(k + 2) % 4]) - 0.5 * (c[k] + c[(k + 3) % 4]))
+    n = np.array([-d[1], d[0]])
+    line = (0.5 * (p + q) + offset * n, _unit(q - p))
+    # the middle only, as the seam was found: its ends run into the sides' own edges; a
+    # page block's face between two books' edges may leave no single edge to fit
+    fit = refine_segment(grad, p + 0.15 * (q - p) + offset * n, q - 0.15 * (q - p) + offset * n,
+                         half_width=1.5)
+    if fit is not None and abs((fit[0] - line[0]) @ n) <= 1.0:
+        line = fit
+    ends = []
+    for a, b in ((c[(k + 3) % 4], c[k]), (c[(k + 1) % 4], c[(k + 2) % 4])):
+        x = intersect(line[0], line[1], a, _unit(b - a))
+        if x is None or np.linalg.norm(x - (p if not ends else q)) > 10.0:
+            return None
+        ends.append(x)
+    return ends[0], ends[1]
+
+
+def _steps_in_height(corners: dict[str, NDArray[np.float64]],
+                     parts: tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]],
+                     k: int, Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
+                     up: NDArray[np.float64], cfg: SplitConfig, *,
+                     down: tuple[float, float]) -> bool:
+    """Whether the sides the seam cuts (``k + 1`` and ``k + 3``) step in height there: each
+    measured side's two halves (one per part) ``cfg.min_step`` apart or more, the same way
+    round, and two measured sides' halves within ``cfg.max_spread`` of each other's."""
+    placed = [geometry.triangulate(Q["left"], Q["right"], part["left"], part["right"])
+              for part in parts]
+    if not all(np.all(np.isfinite(P)) for P in placed):
+        return False
+    steps = []
+    for s in ((k + 1) % 4, (k + 3) % 4):
+        if _faces_camera(corners, s, down):
+            continue
+        halves = []
+        for P in placed:
+            z, sigma = _edge_height(P, s, Q, grads, up)
+            if sigma > cfg.max_sigma:
+                break
+            halves.append(float(up @ (0.5 * (P[s] + P[(s + 1) % 4]))) + z)
+        if len(halves) == 2:
+            steps.append(halves)
+    if not steps:
+        return False
+    h = np.array(steps)  # (sides, 2): each measured side's heights, near part first
+    step = h[:, 0] - h[:, 1]
+    if np.any(np.abs(step) < cfg.min_step) or np.any(np.sign(step) != np.sign(step[0])):
+        return False
+    return bool(np.all(np.ptp(h, axis=0) <= cfg.max_spread))
+
+
+def _faces_camera(corners: dict[str, NDArray[np.float64]], s: int,
+                  down: tuple[float, float]) -> bool:
+    """Whether side ``s`` faces the camera in either image: its outward normal points
+    ``down`` the image (its page block shows below it)."""
+    for c in corners.values():
+        d = _unit(c[(s + 1) % 4] - c[s])
+        n = np.array([-d[1], d[0]])
+        if n @ (c.mean(axis=0) - 0.5 * (c[s] + c[(s + 1) % 4])) > 0:
+            n = -n  # outward
+        if n @ np.asarray(down) > 0.05:
+            return True
+    return False
