@@ -979,10 +979,19 @@ class Detector:
             if parts is not None:
                 made = []
                 for part in parts:
-                    shift = int(np.argmin(part["left"].sum(axis=1)))  # eq. 1 order, left
-                    trial = replace(pair, left=np.roll(part["left"], -shift, axis=0),
-                                    right=np.roll(part["right"], -shift, axis=0))
-                    trial, fitted, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
+                    # each part's sides fitted to its own edges in each image first: the
+                    # union's corners may come from a rectangle placed at one height
+                    # (a candidate completed in 3D), off in one image for the lower part
+                    fitted = None
+                    for quads in ({cam: refine_quad(grads[cam], q) for cam, q in part.items()},
+                                  part):
+                        shift = int(np.argmin(quads["left"].sum(axis=1)))  # eq. 1 order, left
+                        trial = replace(pair, left=np.roll(quads["left"], -shift, axis=0),
+                                        right=np.roll(quads["right"], -shift, axis=0))
+                        trial, fitted, _ = self._reconstruct_or_why(rig, trial, desk_plane,
+                                                                    texture)
+                        if fitted is not None:
+                            break
                     made.append((trial, fitted))
                 # the parts, placed in 3D each on its own, must keep the step that split them
                 if all(fitted is not None for _, fitted in made) and abs(

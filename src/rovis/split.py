@@ -48,7 +48,8 @@ class SplitConfig:
     lie within ``agree`` of each other along the cover; the two halves of a side (each
     placed by stereo to within ``max_sigma``) must stand at least ``min_step`` apart in
     height, and where both sides are measured, their halves within ``max_spread`` of each
-    other's.
+    other's, every half within ``height_range`` above the desk (a book's). The
+    ``max_seams`` strongest seams of each axis are tried, the strongest that steps kept.
     """
 
     enabled: bool = True
@@ -59,6 +60,8 @@ class SplitConfig:
     min_step: float = 0.005
     max_sigma: float = 0.004
     max_spread: float = 0.004
+    max_seams: int = 3
+    height_range: tuple[float, float] = (0.003, 0.08)
 
 
 def seam_profile(grad: Gradients, corners: NDArray[np.float64], k: int, t: NDArray[np.float64],
@@ -109,11 +112,12 @@ def split_union(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np
     """A stereo pair's cover (corners (4, 2) per camera, eq. 1 order) split into two
     touching books' covers, or None where it is one book.
 
-    For each pair of opposite sides, the seam is the line parallel to them with the most
-    step in both images (:func:`seam_profile`), a part at least ``cfg.min_part`` long on
-    either side; each image's seam line is fitted to its edge (:func:`refine_segment`) and
-    cut by the other two sides for the parts' corners. The parts are kept when those sides
-    step in height at the seam by ``cfg.min_step`` or more (see the module's notes).
+    For each pair of opposite sides, the seams are the lines parallel to them with a step
+    in both images (:func:`seam_profile`'s peaks), a part at least ``cfg.min_part`` long
+    on either side; each image's seam line is fitted to its edge (:func:`refine_segment`)
+    and cut by the other two sides for the parts' corners. The strongest seam where those
+    sides step in height by ``cfg.min_step`` or more (see the module's notes) gives the
+    parts.
 
     Parameters
     ----------
@@ -138,7 +142,7 @@ def split_union(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np
     P = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
     if not np.all(np.isfinite(P)):
         return None
-    best = None
+    seams = []  # (score, k, per camera (t, offset)): every candidate seam, both axes
     for k in (0, 1):
         # across the seam: from side k to side k + 2, along sides k + 1 and k + 3
         span = 0.5 * (np.linalg.norm(P[(k + 2) % 4] - P[(k + 1) % 4])
@@ -155,30 +159,33 @@ def split_union(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np
         w = max(int(round(cfg.agree / 0.001)), 0)
         right = np.array([prof["right"][max(i - w, 0):i + w + 1].max() for i in range(len(t))])
         score = np.minimum(prof["left"], right)
-        i = int(np.argmax(score))
-        if score[i] >= cfg.min_share and (best is None or score[i] > best[0]):
+        # the local maxima that pass, a print's edge among them (a photo's title band):
+        # the step in height picks the seam
+        padded = np.r_[-np.inf, score, -np.inf]
+        peaks = np.flatnonzero((score >= cfg.min_share) & (score >= padded[:-2])
+                               & (score > padded[2:]))
+        for i in peaks[np.argsort(-score[peaks], kind="stable")][:cfg.max_seams].tolist():
             # of the right's near-best, the nearest the left's (the same edge of a page
             # block's face, not its other one)
             window = np.arange(max(i - w, 0), min(i + w + 1, len(t)))
             near_best = window[prof["right"][window] >= right[i] - 0.05]
             j = int(near_best[np.argmin(np.abs(near_best - i))])
-            best = (float(score[i]), k, {"left": (t[i], found["left"][1][i]),
-                                         "right": (t[j], found["right"][1][j])})
-    if best is None:
-        return None
-    _, k, t_seam = best
-    parts: tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]] = ({}, {})
-    for cam, c in corners.items():
-        seam = _seam_corners(grads[cam], c, k, *t_seam[cam])
-        if seam is None:
-            return None
-        near, far = c.copy(), c.copy()  # the part at side k, the part at side k + 2
-        near[(k + 3) % 4], near[(k + 2) % 4] = seam
-        far[k], far[(k + 1) % 4] = seam
-        parts[0][cam], parts[1][cam] = near, far
-    if not _steps_in_height(corners, parts, k, Q, grads, up, cfg, down=down):
-        return None
-    return parts
+            seams.append((float(score[i]), k, {"left": (t[i], found["left"][1][i]),
+                                               "right": (t[j], found["right"][1][j])}))
+    for _, k, t_seam in sorted(seams, key=lambda item: -item[0]):  # the strongest first
+        parts: tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]] = ({}, {})
+        for cam, c in corners.items():
+            seam = _seam_corners(grads[cam], c, k, *t_seam[cam])
+            if seam is None:
+                break
+            near, far = c.copy(), c.copy()  # the part at side k, the part at side k + 2
+            near[(k + 3) % 4], near[(k + 2) % 4] = seam
+            far[k], far[(k + 1) % 4] = seam
+            parts[0][cam], parts[1][cam] = near, far
+        else:
+            if _step_in_height(corners, parts, k, Q, grads, up, cfg, down=down) > 0:
+                return parts
+    return None
 
 
 def _seam_corners(grad: Gradients, c: NDArray[np.float64], k: int, t: float, offset: float,
@@ -206,18 +213,20 @@ def _seam_corners(grad: Gradients, c: NDArray[np.float64], k: int, t: float, off
     return ends[0], ends[1]
 
 
-def _steps_in_height(corners: dict[str, NDArray[np.float64]],
-                     parts: tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]],
-                     k: int, Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
-                     up: NDArray[np.float64], cfg: SplitConfig, *,
-                     down: tuple[float, float]) -> bool:
-    """Whether the sides the seam cuts (``k + 1`` and ``k + 3``) step in height there: each
-    measured side's two halves (one per part) ``cfg.min_step`` apart or more, the same way
-    round, and two measured sides' halves within ``cfg.max_spread`` of each other's."""
+def _step_in_height(corners: dict[str, NDArray[np.float64]],
+                    parts: tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]],
+                    k: int, Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
+                    up: NDArray[np.float64], cfg: SplitConfig, *,
+                    down: tuple[float, float]) -> float:
+    """How far the sides the seam cuts (``k + 1`` and ``k + 3``) step in height there
+    (metres, the smaller of the measured sides'), or 0 unless each measured side's two
+    halves (one per part) lie ``cfg.min_step`` apart or more, the same way round, within
+    ``cfg.height_range``, and two measured sides' halves within ``cfg.max_spread`` of each
+    other's."""
     placed = [geometry.triangulate(Q["left"], Q["right"], part["left"], part["right"])
               for part in parts]
     if not all(np.all(np.isfinite(P)) for P in placed):
-        return False
+        return 0.0
     steps = []
     for s in ((k + 1) % 4, (k + 3) % 4):
         if _faces_camera(corners, s, down):
@@ -231,12 +240,14 @@ def _steps_in_height(corners: dict[str, NDArray[np.float64]],
         if len(halves) == 2:
             steps.append(halves)
     if not steps:
-        return False
+        return 0.0
     h = np.array(steps)  # (sides, 2): each measured side's heights, near part first
     step = h[:, 0] - h[:, 1]
-    if np.any(np.abs(step) < cfg.min_step) or np.any(np.sign(step) != np.sign(step[0])):
-        return False
-    return bool(np.all(np.ptp(h, axis=0) <= cfg.max_spread))
+    if np.any(h < cfg.height_range[0]) or np.any(h > cfg.height_range[1]) \
+            or np.any(np.abs(step) < cfg.min_step) or np.any(np.sign(step) != np.sign(step[0])) \
+            or np.any(np.ptp(h, axis=0) > cfg.max_spread):
+        return 0.0
+    return float(np.abs(step).min())
 
 
 def _faces_camera(corners: dict[str, NDArray[np.float64]], s: int,
