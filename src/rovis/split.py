@@ -41,11 +41,12 @@ class SplitConfig:
     """Splitting a cover that is two touching books (:func:`split_union`; metres unless
     noted).
 
-    ``enabled`` turns it on; each part must be at least ``min_part`` long across the seam
-    (the smallest book's side); the seam must show a step (the derivative across it at
-    least each image's Canny low threshold) along ``min_share`` of its middle, at the best
-    offset within ``reach_px`` pixels of each image's line, and the two images' seams must
-    lie within ``agree`` of each other along the cover; the two halves of a side (each
+    ``enabled`` turns it on; seams are looked for every ``step`` across the cover, each
+    part at least ``min_part`` long across the seam (the smallest book's side); the seam
+    must show a step (the derivative across it at least each image's Canny low
+    threshold) along ``min_share`` of its middle, at the best offset within ``reach_px``
+    pixels of each image's line, and the two images' seams must lie within ``agree`` of
+    each other along the cover; the two halves of a side (each
     placed by stereo to within ``max_sigma``) must stand at least ``min_step`` apart in
     height, and where both sides are measured, their halves within ``max_spread`` of each
     other's, every half within ``height_range`` above the desk (a book's). The
@@ -53,6 +54,7 @@ class SplitConfig:
     """
 
     enabled: bool = True
+    step: float = 0.001
     min_part: float = 0.085
     min_share: float = 0.7
     reach_px: float = 2.0
@@ -89,7 +91,7 @@ def seam_profile(grad: Gradients, corners: NDArray[np.float64], k: int, t: NDArr
     p = a0 + t[:, None] * (a1 - a0)  # (T, 2): the seam's ends
     q = b0 + t[:, None] * (b1 - b0)
     length = float(np.median(np.linalg.norm(q - p, axis=1)))
-    s = np.arange(trim * length, (1 - trim) * length, 1.0) / max(length, 1e-9)
+    s = np.arange(trim * length, (1 - trim) * length, 2.0) / max(length, 1e-9)
     if len(s) == 0:
         return np.zeros(len(t)), np.zeros(len(t))
     d = _unit(0.5 * (b0 + b1) - 0.5 * (a0 + a1))  # along the seam, on average
@@ -149,14 +151,14 @@ def split_union(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np
                       + np.linalg.norm(P[k] - P[(k + 3) % 4]))
         if span < 2 * cfg.min_part:
             continue
-        t = np.arange(cfg.min_part, span - cfg.min_part + 1e-9, 0.001) / span
+        t = np.arange(cfg.min_part, span - cfg.min_part + 1e-9, cfg.step) / span
         found = {cam: seam_profile(grads[cam], corners[cam], k, t, strength[cam],
                                    reach_px=cfg.reach_px) for cam in corners}
         prof = {cam: share for cam, (share, _) in found.items()}
         # the images' seams may lie a few millimetres apart along the cover (the
         # interpolation is in each image, the perspective differs a little): the best of
         # the right's within ``agree`` of each of the left's
-        w = max(int(round(cfg.agree / 0.001)), 0)
+        w = max(int(round(cfg.agree / cfg.step)), 0)
         right = np.array([prof["right"][max(i - w, 0):i + w + 1].max() for i in range(len(t))])
         score = np.minimum(prof["left"], right)
         # the local maxima that pass, a print's edge among them (a photo's title band):
