@@ -604,8 +604,7 @@ class Detector:
         # the Canny low threshold, along StereoConfig.two_sided_evidence of its length,
         # and its corners lie within StereoConfig.two_sided_flatness of one height.
         evidence = 0.5
-        strength = {cam: CANNY_LOW_RATIO * (segs[cam].T_H or cfg.segment.open_T_H)
-                    for cam in ("left", "right")}
+        strength = self._edge_strength(segs)
 
         def two_open(quads: Quads, k: int) -> bool:
             return bool(np.count_nonzero(quads.lines[k] < 0) >= 2)
@@ -910,8 +909,7 @@ class Detector:
         than by both segmentations, with every side seen, is not moved over one so found.
         The moved cover keeps its pair's ``quality`` and ``error_px``."""
         Q = {"left": rig.Q_L, "right": rig.Q_R}
-        strength = {cam: CANNY_LOW_RATIO * (segs[cam].T_H or self.cfg.segment.open_T_H)
-                    for cam in Q}
+        strength = self._edge_strength(segs)
         out, moved, before = [], [], {}
         for pair, book in found:
             if self.cfg.facing.enabled:  # the page block's edge that is the cover's, in both
@@ -960,6 +958,13 @@ class Detector:
                     drop.add(k)
         return [item for k, item in enumerate(out) if k not in drop]
 
+    def _edge_strength(self, segs: dict[str, Segmentation]) -> dict[str, float]:
+        """Per camera, the derivative across a line that counts as an edge: the Canny low
+        threshold of the image's segmentation (LSD and contours set none: the open
+        loop's)."""
+        return {cam: CANNY_LOW_RATIO * (seg.T_H or self.cfg.segment.open_T_H)
+                for cam, seg in segs.items()}
+
     def _split_unions(self, rig: StereoRig, segs: dict[str, Segmentation],
                       grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
                       desk_plane: NDArray[np.float64],
@@ -970,8 +975,7 @@ class Detector:
         heights differ by ``split.min_step`` or more; the parts keep the pair's source,
         ``quality`` and ``error_px``."""
         Q = {"left": rig.Q_L, "right": rig.Q_R}
-        strength = {cam: CANNY_LOW_RATIO * (segs[cam].T_H or self.cfg.segment.open_T_H)
-                    for cam in Q}
+        strength = self._edge_strength(segs)
         out: list[tuple[Pair, BookDetection]] = []
         for pair, book in found:
             parts = split_union({"left": pair.left, "right": pair.right}, Q, grads, strength,
