@@ -129,3 +129,29 @@ def test_rectangle_fit_is_exact_without_noise_and_always_a_rectangle(rig):
         err_fit.append(np.linalg.norm(fit.mean(axis=0) - P.mean(axis=0)))
     # the centre is found at least as well as from the four corners triangulated alone
     assert np.mean(err_fit) <= np.mean(err_dlt) * 1.05
+
+
+def test_a_rectangle_on_the_desk_stays_parallel_to_it(rig):
+    desk = np.array([0.0, 0.0, 1.0, 0.0])
+    P = _cover(30.0, [0.45, 0.35, 0.012])
+    pl, pr = _project(rig.Q_L, P), _project(rig.Q_R, P)
+    start = P + np.array([[0, 0, 0.008], [0, 0, 0.0], [0, 0, -0.004], [0, 0, 0.006]])  # tilted
+    fit = geometry.fit_rectangle(rig.Q_L, rig.Q_R, pl, pr, start, desk)
+    assert np.abs(fit - P).max() < 1e-6
+    # corners each a pixel off, differently in the two images: the four triangulated alone
+    # lie centimetres apart in height, the fit is flat and within millimetres of the cover
+    rng = np.random.default_rng(2)
+    noisy_l, noisy_r = pl + rng.normal(0, 0.7, pl.shape), pr + rng.normal(0, 0.7, pr.shape)
+    dlt = geometry.triangulate(rig.Q_L, rig.Q_R, noisy_l, noisy_r)
+    fit = geometry.fit_rectangle(rig.Q_L, rig.Q_R, noisy_l, noisy_r, dlt, desk)
+    assert np.ptp(fit[:, 2]) < 1e-9  # parallel to the desk
+    assert np.ptp(dlt[:, 2]) > 0.003
+    assert np.linalg.norm(fit.mean(axis=0) - P.mean(axis=0)) < 0.004
+    # a tilted cover (an outline with its page block) fits no flat rectangle closely
+    T = P.copy()
+    T[[0, 3], 2] += 0.03
+    tl, tr = _project(rig.Q_L, T), _project(rig.Q_R, T)
+    fit = geometry.fit_rectangle(rig.Q_L, rig.Q_R, tl, tr, T, desk)
+    off = max(np.linalg.norm(_project(rig.Q_L, fit) - tl, axis=1).max(),
+              np.linalg.norm(_project(rig.Q_R, fit) - tr, axis=1).max())
+    assert off > 2.0  # px

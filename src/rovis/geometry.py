@@ -437,14 +437,16 @@ def look_at(eye: ArrayLike, target: ArrayLike,
 
 
 def fit_rectangle(Q_L: ArrayLike, Q_R: ArrayLike, px_left: ArrayLike, px_right: ArrayLike,
-                  corners: ArrayLike) -> NDArray[np.float64]:
+                  corners: ArrayLike, desk_plane: ArrayLike | None = None) -> NDArray[np.float64]:
     """One 3D rectangle fitted to a cover's corners in both images (beyond the paper).
 
     Triangulating each corner alone (eq. 3–5) leaves four points that are neither coplanar
     nor a rectangle. Here the cover is a rectangle — pose (rotation vector, centre) and
     length, width: 8 parameters — whose projected corners best fit the 16 measured corner
     coordinates of both images (Levenberg–Marquardt, scipy.optimize.least_squares), started
-    from the corners' own pose (:func:`pose_from_corners`).
+    from the corners' own pose (:func:`pose_from_corners`). With ``desk_plane``, the
+    rectangle lies parallel to the desk: its heading about the desk's normal, centre and
+    length, width (6 parameters).
 
     Parameters
     ----------
@@ -454,6 +456,8 @@ def fit_rectangle(Q_L: ArrayLike, Q_R: ArrayLike, px_left: ArrayLike, px_right: 
         Corresponding corners, pixels.
     corners : array_like, shape (4, 3)
         Their triangulation (world, metres): the starting point.
+    desk_plane : array_like, shape (4,), optional
+        ``[nx, ny, nz, d]`` (world, normal up).
 
     Returns
     -------
@@ -471,15 +475,36 @@ def fit_rectangle(Q_L: ArrayLike, Q_R: ArrayLike, px_left: ArrayLike, px_right: 
     signs = np.sign((P0 - pose.center) @ pose.R[:, :2])
     signs[signs == 0] = 1.0
 
-    def rectangle(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        R = Rotation.from_rotvec(x[:3]).as_matrix()
-        local = np.column_stack([0.5 * x[6] * signs[:, 0], 0.5 * x[7] * signs[:, 1], np.zeros(4)])
-        return x[3:6] + local @ R.T
+    if desk_plane is None:
+        def rectangle(x: NDArray[np.float64]) -> NDArray[np.float64]:
+            R = Rotation.from_rotvec(x[:3]).as_matrix()
+            local = np.column_stack([0.5 * x[6] * signs[:, 0], 0.5 * x[7] * signs[:, 1],
+                                     np.zeros(4)])
+            return x[3:6] + local @ R.T
+
+        x0 = np.concatenate([Rotation.from_matrix(pose.R).as_rotvec(), pose.center,
+                             pose.size[:2]])
+        scale = np.r_[[0.01] * 3, [0.001] * 3, [0.001] * 2]
+    else:
+        n = np.asarray(desk_plane, dtype=np.float64)[:3]
+        n = n / np.linalg.norm(n)
+        e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(n, e1)
+        x_axis = pose.R[:, 0] - (pose.R[:, 0] @ n) * n  # the heading, on the desk
+
+        def rectangle(x: NDArray[np.float64]) -> NDArray[np.float64]:
+            xd = np.cos(x[0]) * e1 + np.sin(x[0]) * e2
+            yd = np.cross(n, xd)
+            return x[1:4] + 0.5 * x[4] * signs[:, :1] * xd + 0.5 * x[5] * signs[:, 1:] * yd
+
+        x0 = np.concatenate([[np.arctan2(x_axis @ e2, x_axis @ e1)], pose.center,
+                             pose.size[:2]])
+        scale = np.r_[0.01, [0.001] * 3, [0.001] * 2]
 
     def residuals(x: NDArray[np.float64]) -> NDArray[np.float64]:
         P = rectangle(x)
         return np.concatenate([(project(Q_L, P) - pl).ravel(), (project(Q_R, P) - pr).ravel()])
 
-    x0 = np.concatenate([Rotation.from_matrix(pose.R).as_rotvec(), pose.center, pose.size[:2]])
-    sol = least_squares(residuals, x0, method="lm", x_scale=np.r_[[0.01] * 3, [0.001] * 3, [0.001] * 2])
+    sol = least_squares(residuals, x0, method="lm", x_scale=scale)
     return rectangle(sol.x)

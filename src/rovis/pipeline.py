@@ -100,6 +100,10 @@ class DetectConfig:
     fit_rectangle : bool
         Replace the four separately triangulated corners by one 3D rectangle fitted to both
         images' corners (:func:`rovis.geometry.fit_rectangle`; beyond the paper).
+    flat_refit_px : float
+        Pixels; 0 turns it off. A stereo pair that comes out tilted or with a side on the
+        desk is refit as one rectangle parallel to the desk, kept where every corner of
+        both images lies within this of it (beyond the paper; needs the desk plane).
     segment, stereo, extent, complete, facing, sweep
         :class:`SegmentConfig`, :class:`StereoConfig`, :class:`ExtentConfig`,
         :class:`CompleteConfig`, :class:`FacingConfig`, :class:`SweepConfig`.
@@ -130,6 +134,7 @@ class DetectConfig:
     max_cover_side: float = 0.45
     min_cover_side: float = 0.06
     fit_rectangle: bool = False
+    flat_refit_px: float = 1.0
     full_view: bool = True
     segment: SegmentConfig = field(default_factory=SegmentConfig)
     stereo: StereoConfig = field(default_factory=StereoConfig)
@@ -347,6 +352,14 @@ class Detector:
                    if (self.cfg.sweep.check or self.cfg.sweep.transfer) and desk_plane is not None
                    else None)
         books = [self._reconstruct_or_why(rig, pair, desk_plane, texture) for pair in pairs]
+        if self.cfg.flat_refit_px > 0 and desk_plane is not None:
+            # beyond the paper: a cover whose corners are each a pixel off in a different
+            # way comes out tilted or with a side on the desk (a pixel of disparity is a
+            # centimetre of height); one rectangle parallel to the desk fitted to both
+            # images' corners is kept where it reprojects onto all of them
+            for i, (pair, book, why) in enumerate(books):
+                if book is None and why in ("tilted", "side on desk"):
+                    books[i] = self._flat_refit(rig, pair, desk_plane, texture) or books[i]
         if self.cfg.stereo.alternatives:
             # beyond the paper: a pair that is no cover may be one with the other quads the
             # closed loop found over its quads (Segmentation.alternatives)
@@ -957,6 +970,29 @@ class Detector:
                         out[i][0].left, out[k][0].left) > self.cfg.stereo.transfer_max_overlap:
                     drop.add(k)
         return [item for k, item in enumerate(out) if k not in drop]
+
+    def _flat_refit(self, rig: StereoRig, pair: Pair, desk_plane: NDArray[np.float64],
+                    texture: dict[str, NDArray[np.float32]] | None,
+                    ) -> tuple[Pair, BookDetection, str] | None:
+        """The pair as one rectangle parallel to the desk (:func:`rovis.geometry.fit_rectangle`
+        with the desk plane), its corners projected into both images, if each image's
+        corners lie within ``flat_refit_px`` of the rectangle's and it passes the pose
+        checks; else None. A cover's outline with its page block, tilted in truth, fits
+        no flat rectangle that well."""
+        P0 = geometry.triangulate(rig.Q_L, rig.Q_R, pair.left, pair.right)
+        if not np.all(np.isfinite(P0)):
+            return None
+        try:
+            P = geometry.fit_rectangle(rig.Q_L, rig.Q_R, pair.left, pair.right, P0, desk_plane)
+        except ValueError:
+            return None
+        flat = replace(pair, left=geometry.project(rig.Q_L, P), right=geometry.project(rig.Q_R, P))
+        off = max(float(np.linalg.norm(flat.left - pair.left, axis=1).max()),
+                  float(np.linalg.norm(flat.right - pair.right, axis=1).max()))
+        if not np.isfinite(off) or off > self.cfg.flat_refit_px:
+            return None
+        trial = self._reconstruct_or_why(rig, flat, desk_plane, texture)
+        return trial if trial[1] is not None else None
 
     def _edge_strength(self, segs: dict[str, Segmentation]) -> dict[str, float]:
         """Per camera, the derivative across a line that counts as an edge: the Canny low
