@@ -352,14 +352,7 @@ class Detector:
                    if (self.cfg.sweep.check or self.cfg.sweep.transfer) and desk_plane is not None
                    else None)
         books = [self._reconstruct_or_why(rig, pair, desk_plane, texture) for pair in pairs]
-        if self.cfg.flat_refit_px > 0 and desk_plane is not None:
-            # beyond the paper: a cover whose corners are each a pixel off in a different
-            # way comes out tilted or with a side on the desk (a pixel of disparity is a
-            # centimetre of height); one rectangle parallel to the desk fitted to both
-            # images' corners is kept where it reprojects onto all of them
-            for i, (pair, book, why) in enumerate(books):
-                if book is None and why in ("tilted", "side on desk"):
-                    books[i] = self._flat_refit(rig, pair, desk_plane, texture) or books[i]
+        books = self._with_flat_refits(rig, books, desk_plane, texture)
         if self.cfg.stereo.alternatives:
             # beyond the paper: a pair that is no cover may be one with the other quads the
             # closed loop found over its quads (Segmentation.alternatives)
@@ -378,7 +371,9 @@ class Detector:
             more = self._transfer(rig, segs, grads, ideal, kept, desk_plane, texture)
             lap("stereo")
             pairs += more
-            books += [self._reconstruct_or_why(rig, pair, desk_plane, texture) for pair in more]
+            books += self._with_flat_refits(
+                rig, [self._reconstruct_or_why(rig, pair, desk_plane, texture) for pair in more],
+                desk_plane, texture)
             lap("pose")
         found = [(pair, book) for pair, book, _ in books if book is not None]
         if desk_plane is None:
@@ -970,6 +965,22 @@ class Detector:
                         out[i][0].left, out[k][0].left) > self.cfg.stereo.transfer_max_overlap:
                     drop.add(k)
         return [item for k, item in enumerate(out) if k not in drop]
+
+    def _with_flat_refits(self, rig: StereoRig,
+                          books: list[tuple[Pair, BookDetection | None, str]],
+                          desk_plane: NDArray[np.float64] | None,
+                          texture: dict[str, NDArray[np.float32]] | None,
+                          ) -> list[tuple[Pair, BookDetection | None, str]]:
+        """``books`` (pair, book or None, why) with each pair that came out tilted or with
+        a side on the desk replaced by its flat refit where that makes a book
+        (:meth:`_flat_refit`; beyond the paper: a cover whose corners are each a pixel off
+        in a different way comes out so, a pixel of disparity being a centimetre of
+        height)."""
+        if self.cfg.flat_refit_px <= 0 or desk_plane is None:
+            return books
+        return [(self._flat_refit(rig, pair, desk_plane, texture) or (pair, book, why))
+                if book is None and why in ("tilted", "side on desk") else (pair, book, why)
+                for pair, book, why in books]
 
     def _flat_refit(self, rig: StereoRig, pair: Pair, desk_plane: NDArray[np.float64],
                     texture: dict[str, NDArray[np.float32]] | None,
