@@ -492,6 +492,11 @@ def fit_rectangle(Q_L: ArrayLike, Q_R: ArrayLike, px_left: ArrayLike, px_right: 
         e1 /= np.linalg.norm(e1)
         e2 = np.cross(n, e1)
         x_axis = pose.R[:, 0] - (pose.R[:, 0] @ n) * n  # the heading, on the desk
+        x_axis /= np.linalg.norm(x_axis)
+        # the corners' quadrants in the frame the fit turns (y = up × x, whichever way
+        # round the corners go)
+        signs = np.sign((P0 - pose.center) @ np.column_stack([x_axis, np.cross(n, x_axis)]))
+        signs[signs == 0] = 1.0
 
         def rectangle(x: NDArray[np.float64]) -> NDArray[np.float64]:
             xd = np.cos(x[0]) * e1 + np.sin(x[0]) * e2
