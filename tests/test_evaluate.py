@@ -102,6 +102,13 @@ def test_summary_statistics_and_recall_of_well_visible_books():
     assert s["errors"]["psi_deg"]["mean"] == pytest.approx(2.0)
     text = ev.method_table("closed", s, ev.PAPER_TABLE_I)
     assert "Max error" in text and "St. deviation" in text and "paper Table I" in text
+    # the grasp tolerance: 1 and 3 mm off are within 1 cm; 15 mm off is matched, not within
+    assert s["within_1cm"] == 4 and "4 of the 4 matched books within 1 cm" in text
+    off = {"books": [{"visible": True}],
+           "methods": {"closed": score_books(books[:1], [_book([0.1, 0.115, 0.03], 0.0,
+                                                               [0.2, 0.15, 0.03])])}}
+    s_off = ev.summarize_method([off], "closed")
+    assert (s_off["found"], s_off["within_1cm"]) == (1, 0)
     assert ev.lux_band(15.0) == "15-50 lx" and ev.lux_band(1200.0) == "500-1200 lx"
     assert ev.lux_band(10.0) == "<15 lx" and ev.lux_band(None) is None
 
