@@ -413,3 +413,68 @@ def test_sides_both_images_agree_on_stay(lone_book):
     P, Q, grads, desk, _ = lone_book
     truth = {cam: geometry.project(Q[cam], P) for cam in Q}
     assert extent.settle_facing_sides(truth, Q, grads, desk) is None
+
+
+# -- the cover's height from its sides' edges (extent.height_from_sides)
+
+
+def _shifted_right(P, Q, dx_px):
+    """Both images' corners of cover ``P``, the right image's moved ``dx_px`` along its
+    rows: a disparity error that puts the corners' plane about a centimetre off."""
+    left, right = geometry.project(Q["left"], P), geometry.project(Q["right"], P)
+    return left, right + np.array([dx_px, 0.0])
+
+
+def _corner_height(Q, left, right, desk):
+    return float(geometry.plane_distance(
+        desk, geometry.triangulate(Q["left"], Q["right"], left, right)).mean())
+
+
+@pytest.fixture(scope="module")
+def turned_book():
+    """The lone book turned to 45°: its two sides that do not face the cameras both cross
+    the epipolar lines (at 20° one runs nearly along them and tells no height)."""
+    r, grads, Q, rig = _rendered([replace(LONE_BOOK, yaw_deg=45.0)])
+    return np.array(r.truth["books"][0]["corners"]), Q, grads, np.asarray(r.truth["desk_plane"]), rig
+
+
+@pytest.mark.parametrize("dx_px", [0.0, 1.0, -1.0])
+def test_the_sides_give_the_height_the_corners_miss(turned_book, dx_px):
+    P, Q, grads, desk, _ = turned_book
+    left, right = _shifted_right(P, Q, dx_px)
+    at_corners = _corner_height(Q, left, right, desk)
+    if dx_px:
+        assert abs(at_corners - THICKNESS) > 0.006  # the error the step is for
+    h = extent.height_from_sides(geometry.triangulate(Q["left"], Q["right"], left, right),
+                                 Q, grads, desk)
+    assert h is not None
+    assert abs(h - THICKNESS) < 0.002
+
+
+def test_one_side_alone_gives_no_height(lone_book):
+    P, Q, grads, desk, _ = lone_book  # at 20°, one side that does not face the cameras
+    assert extent.height_from_sides(P, Q, grads, desk) is None
+
+
+def test_sides_that_disagree_give_no_height(turned_book):
+    P, Q, grads, desk, _ = turned_book
+    strict = extent.SideHeightConfig(agree=0.0)  # no two fits agree exactly
+    assert extent.height_from_sides(P, Q, grads, desk, strict) is None
+
+
+@pytest.mark.parametrize("enabled", [True, False])
+def test_detect_moves_a_cover_to_its_sides_height(turned_book, enabled):
+    P, Q, grads, desk, rig = turned_book
+    left, right = _shifted_right(P, Q, 1.0)
+    cfg = DetectConfig(side_height=extent.SideHeightConfig(enabled=enabled))
+    det = Detector(rig, cfg)
+    pair, book, why = det._reconstruct_or_why(rig, Pair(left, right, 1.0, 0.0), desk)
+    assert book is not None, why
+    [(_, moved)] = det._with_side_heights(rig, grads, [(pair, book)], desk, None) \
+        if enabled else [(pair, book)]
+    if enabled:
+        assert abs(moved.pose.size[2] - THICKNESS) < 0.002
+        # laid on that plane from both images: the centre moves less than 2 mm across
+        assert np.linalg.norm(moved.pose.center[:2] - P[:, :2].mean(axis=0)) < 0.002
+    else:
+        assert abs(moved.pose.size[2] - THICKNESS) > 0.006

@@ -431,6 +431,79 @@ def _line_height(fits: dict[str, Fit],
     return float((inv @ np.array(rhs))[1]), float(px_sigma * np.linalg.norm(inv[1]))
 
 
+def _facing(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
+            down: tuple[float, float] = (0.0, 1.0)) -> bool:
+    """Whether side ``s`` of cover ``P`` (4, 3) faces the camera in either image: its
+    outward normal points down the image, where the page block below it shows (as
+    :func:`settle_facing_sides` decides it, whatever the cover's height)."""
+    for cam in ("left", "right"):
+        q = geometry.project(Q[cam], P)
+        a, b = q[s], q[(s + 1) % 4]
+        n = np.array([b[1] - a[1], a[0] - b[0]]) / max(float(np.linalg.norm(b - a)), 1e-9)
+        if n @ (0.5 * (a + b) - q.mean(axis=0)) < 0:
+            n = -n
+        if n @ np.asarray(down) > 0.05:
+            return True
+    return False
+
+
+@dataclass(frozen=True)
+class SideHeightConfig:
+    """A cover moved to the height its sides' edges give (:func:`height_from_sides`;
+    metres).
+
+    ``enabled`` turns it on; a side counts where stereo places its edge to within
+    ``max_sigma`` (for a 0.1 px error of each image's line) and its page block is hidden;
+    at least two such sides must agree to within ``agree``; the cover moves where their
+    mean lies ``min_move`` or more from its corners' height.
+    """
+
+    enabled: bool = True
+    max_sigma: float = 0.006
+    agree: float = 0.004
+    min_move: float = 0.005
+
+
+def height_from_sides(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
+                      grads: dict[str, Gradients], desk_plane: NDArray[np.float64],
+                      cfg: SideHeightConfig = SideHeightConfig()) -> float | None:
+    """The cover's height above the desk (metres) as its sides' edges give it, or None
+    where fewer than two sides tell it or they disagree.
+
+    A cover's height from its four triangulated corners (eq. 5) rests on each corner's
+    disparity, and a pixel of disparity is a centimetre of height at 1.2 m: one image's
+    side on the page block's edge instead of the cover's, a corner a pixel off, and the
+    book comes out a centimetre high or low, flat all the same. A side that does not face
+    the camera (:func:`_facing`) has no page block below it in the images, one edge,
+    fitted in each image on its own (:func:`_edge_height`); two or more such sides placed
+    well by stereo (not along the epipolar lines) and agreeing with each other give the
+    height without the corners. (A facing side's fit may take the block's foot or a board
+    of it: on a rendered 2 cm book those came out 2–5 mm low.)
+
+    Parameters
+    ----------
+    P : ndarray, shape (4, 3)
+        Triangulated cover corners (world, metres), in cyclic order.
+    Q, grads, desk_plane
+        As :func:`fit_extent`.
+    cfg : SideHeightConfig
+    """
+    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+    c = P.mean(axis=0)
+    P = P - np.outer((P - c) @ up, up)  # onto the cover plane
+    h = float(up @ c + desk_plane[3] / np.linalg.norm(desk_plane[:3]))
+    heights = []
+    for s in range(4):
+        if _facing(P, s, Q):
+            continue  # the block's foot and boards are edges too, below the cover
+        z, sigma = _edge_height(P, s, Q, grads, up)
+        if sigma <= cfg.max_sigma:
+            heights.append(h + z)
+    if len(heights) < 2 or np.ptp(heights) > cfg.agree:
+        return None
+    return float(np.mean(heights))
+
+
 @dataclass(frozen=True)
 class FacingConfig:
     """Choosing, for a cover's sides facing the camera, which edge of the page block below

@@ -28,8 +28,9 @@ from numpy.typing import NDArray
 
 from rovis import geometry, marker
 from rovis.calib import StereoRig
-from rovis.extent import (CompleteConfig, ExtentConfig, FacingConfig, complete_open,
-                          fit_pair_extent, settle_facing_sides)
+from rovis.extent import (CompleteConfig, ExtentConfig, FacingConfig, SideHeightConfig,
+                          complete_open, fit_pair_extent, height_from_sides,
+                          settle_facing_sides)
 from rovis.heightmap import HeightMapConfig, height_map, raised_covers, snap_sides
 from rovis.imageio import to_gray_u8
 from rovis.results import BookDetection, FrameResult, SegmentationInfo
@@ -104,9 +105,12 @@ class DetectConfig:
         Pixels; 0 turns it off. A stereo pair that comes out tilted or with a side on the
         desk is refit as one rectangle parallel to the desk, kept where every corner of
         both images lies within this of it (beyond the paper; needs the desk plane).
-    segment, stereo, extent, complete, facing, sweep
+    segment, stereo, extent, complete, facing, sweep, side_height
         :class:`SegmentConfig`, :class:`StereoConfig`, :class:`ExtentConfig`,
-        :class:`CompleteConfig`, :class:`FacingConfig`, :class:`SweepConfig`.
+        :class:`CompleteConfig`, :class:`FacingConfig`, :class:`SweepConfig`,
+        :class:`SideHeightConfig`. ``side_height``: each cover moved to the height its
+        sides' edges agree on, before the extent step
+        (:func:`rovis.extent.height_from_sides`; beyond the paper; needs the desk plane).
         ``extent``: moving each cover's sides to its edges in both images
         (:mod:`rovis.extent`; beyond the paper; needs the desk plane). ``complete``: a
         pair of candidates with sides unseen, completed to a rectangle in 3D where
@@ -144,6 +148,7 @@ class DetectConfig:
     sweep: SweepConfig = field(default_factory=SweepConfig)
     heightmap: HeightMapConfig = field(default_factory=HeightMapConfig)
     split: SplitConfig = field(default_factory=SplitConfig)
+    side_height: SideHeightConfig = field(default_factory=SideHeightConfig)
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -403,7 +408,11 @@ class Detector:
             warnings.append(f"{len(dropped)} stereo pair(s) of quads dropped: no flat, book-sized "
                             "cover on the desk ("
                             + ", ".join(f"{why}: {n}" for why, n in count.most_common()) + ")")
-        # beyond the paper: each cover's sides moved to its edges, seen in both images
+        # beyond the paper: each cover at the height its sides' edges give, then its sides
+        # moved to its edges, seen in both images
+        if self.cfg.side_height.enabled and desk_plane is not None:
+            found = self._with_side_heights(rig, grads, found, desk_plane, texture)
+            lap("side_height")
         if (self.cfg.extent.grow or self.cfg.extent.shrink) and desk_plane is not None:
             found = self._fit_extents(rig, segs, grads, found, desk_plane, texture)
             lap("extent")
@@ -965,6 +974,36 @@ class Detector:
                         out[i][0].left, out[k][0].left) > self.cfg.stereo.transfer_max_overlap:
                     drop.add(k)
         return [item for k, item in enumerate(out) if k not in drop]
+
+    def _with_side_heights(self, rig: StereoRig, grads: dict[str, Gradients],
+                           found: list[tuple[Pair, BookDetection]],
+                           desk_plane: NDArray[np.float64],
+                           texture: dict[str, NDArray[np.float32]] | None,
+                           ) -> list[tuple[Pair, BookDetection]]:
+        """Each book moved to the height its sides' edges agree on, where that lies
+        ``side_height.min_move`` or more from its corners' (:func:`rovis.extent.height_from_sides`;
+        beyond the paper). Each image's quad is laid on the cover's plane at that height;
+        the two must agree (``sweep.max_spread``), their mean is the cover, and it must
+        pass the pose checks again (its print's height test among them)."""
+        cfg = self.cfg.side_height
+        Q = {"left": rig.Q_L, "right": rig.Q_R}
+        out = []
+        for pair, book in found:
+            P = geometry.triangulate(rig.Q_L, rig.Q_R, pair.left, pair.right)
+            h = (height_from_sides(P, Q, grads, desk_plane, cfg)
+                 if np.all(np.isfinite(P)) else None)
+            if h is not None and abs(h - float(book.pose.size[2])) >= cfg.min_move:
+                P_left = on_plane(rig.Q_L, pair.left, desk_plane, h)
+                P_right = on_plane(rig.Q_R, pair.right, desk_plane, h)
+                if np.max(np.linalg.norm(P_left - P_right, axis=1)) <= self.cfg.sweep.max_spread:
+                    P = 0.5 * (P_left + P_right)
+                    moved, fitted, _ = self._reconstruct_or_why(
+                        rig, replace(pair, left=geometry.project(rig.Q_L, P),
+                                     right=geometry.project(rig.Q_R, P)), desk_plane, texture)
+                    if fitted is not None:
+                        pair, book = moved, fitted
+            out.append((pair, book))
+        return out
 
     def _with_flat_refits(self, rig: StereoRig,
                           books: list[tuple[Pair, BookDetection | None, str]],
