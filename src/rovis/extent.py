@@ -453,7 +453,8 @@ class SideHeightConfig:
     metres).
 
     ``enabled`` turns it on; a side counts where stereo places its edge to within
-    ``max_sigma`` (for a 0.1 px error of each image's line) and its page block is hidden;
+    ``max_sigma`` (for a 0.1 px error of each image's line) and it does not face the
+    cameras (:func:`_facing`);
     at least two such sides must agree to within ``agree``; the cover moves where their
     mean lies ``min_move`` or more from its corners' height.
     """

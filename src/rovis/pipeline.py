@@ -993,10 +993,9 @@ class Detector:
             h = (height_from_sides(P, Q, grads, desk_plane, cfg)
                  if np.all(np.isfinite(P)) else None)
             if h is not None and abs(h - float(book.pose.size[2])) >= cfg.min_move:
-                P_left = on_plane(rig.Q_L, pair.left, desk_plane, h)
-                P_right = on_plane(rig.Q_R, pair.right, desk_plane, h)
-                if np.max(np.linalg.norm(P_left - P_right, axis=1)) <= self.cfg.sweep.max_spread:
-                    P = 0.5 * (P_left + P_right)
+                laid = self._laid_at(rig, pair.left, pair.right, desk_plane, h)
+                if laid is not None:
+                    P = laid
                     moved, fitted, _ = self._reconstruct_or_why(
                         rig, replace(pair, left=geometry.project(rig.Q_L, P),
                                      right=geometry.project(rig.Q_R, P)), desk_plane, texture)
@@ -1171,12 +1170,19 @@ class Detector:
         Each image's quad is laid on that plane; the two must agree (a quad a few pixels
         off in one image is what moved the cover), and their mean is the cover.
         """
-        cfg = self.cfg.sweep
-        if sweep.best_ncc < cfg.min_ncc_to_move:
+        if sweep.best_ncc < self.cfg.sweep.min_ncc_to_move:
             return None
-        P_left = on_plane(rig.Q_L, c_left, desk_plane, sweep.best_height)
-        P_right = on_plane(rig.Q_R, c_right, desk_plane, sweep.best_height)
-        if np.max(np.linalg.norm(P_left - P_right, axis=1)) > cfg.max_spread:
+        return self._laid_at(rig, c_left, c_right, desk_plane, sweep.best_height)
+
+    def _laid_at(self, rig: StereoRig, c_left: NDArray[np.float64],
+                 c_right: NDArray[np.float64], desk_plane: NDArray[np.float64],
+                 height: float) -> NDArray[np.float64] | None:
+        """The cover laid at ``height`` above the desk, (4, 3) world corners: each image's
+        quad on that plane, their mean where they agree within ``sweep.max_spread`` at
+        every corner, else None."""
+        P_left = on_plane(rig.Q_L, c_left, desk_plane, height)
+        P_right = on_plane(rig.Q_R, c_right, desk_plane, height)
+        if np.max(np.linalg.norm(P_left - P_right, axis=1)) > self.cfg.sweep.max_spread:
             return None
         return 0.5 * (P_left + P_right)
 
