@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rovis import geometry
-from rovis.calib import StereoRig, make_rig
+from rovis.calib import StereoRig, make_rig, undistort_iter
 
 SIDE = 0.10  # metres
 _MASTER_PX = 1200  # master texture pixels across the black square (200 per cell)
@@ -77,7 +77,7 @@ def render_view(rig: StereoRig, camera: str, rng: np.random.Generator, *,
     # raw pixel d shows what the ideal camera sees at undistort(d)
     grid = np.stack(np.meshgrid(np.arange(w), np.arange(h)), axis=-1).reshape(-1, 1, 2)
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-9)
-    und = cv2.undistortPoints(grid.astype(np.float64), K, D, P=K, criteria=crit).reshape(h, w, 2)
+    und = undistort_iter(grid.astype(np.float64), K, D, K, crit).reshape(h, w, 2)
     raw = cv2.remap(ideal, und[..., 0].astype(np.float32), und[..., 1].astype(np.float32),
                     cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     raw += rng.normal(0.0, noise, raw.shape).astype(np.float32)

@@ -115,6 +115,20 @@ def _as_size(width: Any, height: Any) -> tuple[int, int]:
     return int(float(width)), int(float(height))
 
 
+def undistort_iter(pts: NDArray[np.float64], K: NDArray[np.float64], D: NDArray[np.float64],
+                   P: NDArray[np.float64] | None, criteria: tuple[int, int, float]
+                   ) -> NDArray[np.float64]:
+    """``cv2.undistortPoints`` run to ``criteria``: (N, 1, 2) raw pixels → (N, 1, 2) ideal
+    pixels (``P=K``) or normalised coordinates (``P=None``).
+
+    OpenCV 4 takes the stopping criteria only through ``cv2.undistortPointsIter``; OpenCV 5
+    dropped that name and takes them as ``undistortPoints``'s ``criteria`` argument.
+    """
+    if hasattr(cv2, "undistortPointsIter"):
+        return cv2.undistortPointsIter(pts, K, D, None, P, criteria)
+    return cv2.undistortPoints(pts, K, D, R=None, P=P, criteria=criteria)
+
+
 # --------------------------------------------------------------------------- the rig
 
 
@@ -276,7 +290,7 @@ class StereoRig:
             return np.zeros((0, 2))
         # The default 5 iterations leave ~0.1 px at the corners of a k1 = -0.36 lens.
         criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
-        out = cv2.undistortPoints(pts, K, D, R=None, P=None if normalized else K, criteria=criteria)
+        out = undistort_iter(pts, K, D, None if normalized else K, criteria)
         return out.reshape(-1, 2)
 
     def distort_points(self, ideal_px: ArrayLike, camera: Camera = "left") -> NDArray[np.float64]:

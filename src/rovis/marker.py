@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
 from rovis import geometry
-from rovis.calib import Camera, StereoRig
+from rovis.calib import Camera, StereoRig, undistort_iter
 from rovis.imageio import to_gray_u8
 
 DICTIONARY = cv2.aruco.DICT_4X4_50
@@ -165,7 +165,7 @@ def _undistort(px: NDArray[np.float64], K: NDArray[np.float64],
     if not np.any(D):
         return px.copy()
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
-    return cv2.undistortPoints(px.reshape(-1, 1, 2), K, D, P=K, criteria=crit).reshape(-1, 2)
+    return undistort_iter(px.reshape(-1, 1, 2), K, D, K, crit).reshape(-1, 2)
 
 
 def _distort(ideal: NDArray[np.float64], K: NDArray[np.float64],

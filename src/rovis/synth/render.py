@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from rovis.calib import StereoRig
+from rovis.calib import StereoRig, undistort_iter
 from rovis.synth import textures
 from rovis.synth.photometry import Exposure, choose_exposure, expose
 from rovis.synth.scene import (DESK, DESK_THICKNESS, FLOOR_Z, Book, Light, Mug, Pen, Scene)
@@ -103,7 +103,7 @@ def _optics(rig: StereoRig, camera: Camera) -> _Optics:
     # For each raw (distorted) pixel, its ideal pinhole position: the inverse of the lens model
     # that rig.project applies, so rendered and projected truth agree.
     criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-10)
-    ideal = cv2.undistortPoints(raw, K, D, None, None, K, criteria).reshape(h, w, 2)
+    ideal = undistort_iter(raw, K, D, K, criteria).reshape(h, w, 2)
     mx = int(np.ceil(max(0.0, -ideal[..., 0].min(), ideal[..., 0].max() - (w - 1)))) + 3
     my = int(np.ceil(max(0.0, -ideal[..., 1].min(), ideal[..., 1].max() - (h - 1)))) + 3
     K_lo = K.copy()
