@@ -12,6 +12,17 @@ REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO.parent / "shared" / "data" / "bumblebee2"
 
 
+def pytest_report_header(config: pytest.Config) -> str:
+    """The OpenCV under test beside the one constraints.txt pins: the synthetic scenes'
+    pixels, and so the tests that pin down one rendered scene, depend on its release."""
+    import cv2
+
+    pinned = next((line.split("==", 1)[1].strip()
+                   for line in (REPO / "constraints.txt").read_text().splitlines()
+                   if line.startswith("opencv-python-headless==")), "none")
+    return f"rovis: OpenCV {cv2.__version__} (constraints.txt pins opencv-python-headless {pinned})"
+
+
 @pytest.fixture
 def rig() -> StereoRig:
     """A Bumblebee2-like rig 1.1 m above a desk, looking down 55°, world = desk frame."""
