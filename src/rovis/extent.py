@@ -433,11 +433,17 @@ def _line_height(fits: dict[str, Fit],
 
 def _facing(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
             down: tuple[float, float] = (0.0, 1.0)) -> bool:
-    """Whether side ``s`` of cover ``P`` (4, 3) faces the camera in either image: its
-    outward normal points down the image, where the page block below it shows (as
-    :func:`settle_facing_sides` decides it, whatever the cover's height)."""
-    for cam in ("left", "right"):
-        q = geometry.project(Q[cam], P)
+    """Whether side ``s`` of cover ``P`` (4, 3) faces the camera in either image
+    (:func:`_faces_down` of its projections, whatever the cover's height)."""
+    return _faces_down({cam: geometry.project(Q[cam], P) for cam in ("left", "right")}, s, down)
+
+
+def _faces_down(corners: dict[str, NDArray[np.float64]], s: int,
+                down: tuple[float, float] = (0.0, 1.0)) -> bool:
+    """Whether side ``s`` of a cover's image corners (4, 2) per camera faces that camera in
+    any of them: its outward normal points down the image (more than 0.05 of it), where
+    the page block below the side shows."""
+    for q in corners.values():
         a, b = q[s], q[(s + 1) % 4]
         n = np.array([b[1] - a[1], a[0] - b[0]]) / max(float(np.linalg.norm(b - a)), 1e-9)
         if n @ (0.5 * (a + b) - q.mean(axis=0)) < 0:
@@ -559,7 +565,7 @@ def settle_facing_sides(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
         n = np.array([-d[1], d[0]])
         return n if n @ (c.mean(axis=0) - lines[cam][s][0]) > 0 else -n
 
-    facing = [any(-inward(cam, s) @ np.asarray(down) > 0.05 for cam in corners) for s in range(4)]
+    facing = [_faces_down(corners, s, down) for s in range(4)]
     ref = []
     for s in range(4):
         if not facing[s]:
