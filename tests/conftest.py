@@ -17,8 +17,9 @@ def pytest_report_header(config: pytest.Config) -> str:
     pixels, and so the tests that pin down one rendered scene, depend on its release."""
     import cv2
 
-    pinned = next((line.split("==", 1)[1].strip()
-                   for line in (REPO / "constraints.txt").read_text().splitlines()
+    constraints = REPO / "constraints.txt"
+    lines = constraints.read_text().splitlines() if constraints.exists() else []
+    pinned = next((line.split("==", 1)[1].strip() for line in lines
                    if line.startswith("opencv-python-headless==")), "none")
     return f"rovis: OpenCV {cv2.__version__} (constraints.txt pins opencv-python-headless {pinned})"
 
