@@ -73,7 +73,7 @@ def bench_triangulation(n_points: int = 1_000_000, *, repeats: int = 7,
 # --------------------------------------------------------------------------- the pipeline
 
 PIPELINE_STAGES = ("marker", "undistort", "gradients", "segmentation", "stereo", "pose", "heightmap",
-                   "side_height", "extent", "split")
+                   "side_height", "extent", "split", "track")
 SEGMENTATION_STEPS = ("canny", "hough", "quads", "three_sided", "two_sided", "refine", "lsd")  # parts of "segmentation"
 
 
@@ -121,8 +121,9 @@ class PipelineBench:
         methods = list(self.timings)
         lines = [f"pipeline: {self.n} synthetic scenes ({self.protocol}), {w}x{h} stereo pairs, "
                  f"one core (cv2.setNumThreads(1)), detector reset before each frame "
-                 f"(closed, warm: before each pair of frames of one scene, the second timed); "
-                 f"ms per frame, median (IQR)"]
+                 f"(closed, warm: before each pair of frames of one scene, the second timed; "
+                 f"closed, tracked: the second frame's books followed from the first, "
+                 f"Detector.track, detected afresh where that fails); ms per frame, median (IQR)"]
         lines.append(f"{'stage':<14}" + "".join(f"{m:>26}" for m in methods))
 
         def cell(a: np.ndarray) -> str:
@@ -191,14 +192,16 @@ def render_frames(n: int, *, size: tuple[int, int] = (1024, 768), protocol: str 
 
 def time_pipeline(rig: StereoRig, frames: list[tuple[np.ndarray, np.ndarray]], method: str, *,
                   previous: list[tuple[np.ndarray, np.ndarray]] | None = None,
-                  cfg: DetectConfig | None = None) -> PipelineTiming:
+                  cfg: DetectConfig | None = None, track: bool = False) -> PipelineTiming:
     """Per-frame and per-stage times of one Detector over ``frames``, on one core; the
     detector is reset before each frame, and a first warm-up frame is not counted.
 
     With ``previous`` (one frame per frame, e.g. the same scene with other sensor noise), each
     timed frame follows its previous one untimed, as in a still camera's sequence: the closed
-    loop's controller then starts from that frame's optimum (warm start). ``cfg``: the
-    detector's settings (its method replaced by ``method``)."""
+    loop's controller then starts from that frame's optimum (warm start); with ``track``
+    too, each timed frame follows the previous one's books (:meth:`Detector.track`) and is
+    detected afresh only where that fails. ``cfg``: the detector's settings (its method
+    replaced by ``method``)."""
     from rovis.pipeline import DetectConfig, Detector
 
     cv2.setNumThreads(1)
@@ -212,13 +215,15 @@ def time_pipeline(rig: StereoRig, frames: list[tuple[np.ndarray, np.ndarray]], m
         if previous is not None:
             detector.detect(*previous[k])
         t0 = time.perf_counter()
-        result = detector.detect(left, right)
+        result = detector.track(left, right) if track else None
+        if result is None:
+            result = detector.detect(left, right)
         total.append(1e3 * (time.perf_counter() - t0))
         books += len(result.objects)
         iterations.append(sum(info.iterations for info in result.segmentation.values()))
         for s in keys:
             stages[s].append(result.timing_ms.get(s, np.nan))
-    name = method if previous is None else f"{method}, warm"
+    name = method if previous is None else f"{method}, {'tracked' if track else 'warm'}"
     # a stage the method never ran (lsd has no Canny) is left out; one it skipped counts 0
     timed = {s: np.nan_to_num(np.array(v)) for s, v in stages.items()
              if s in PIPELINE_STAGES or not np.all(np.isnan(v))}
@@ -286,7 +291,8 @@ def bench_pipeline(n: int = 30, *, size: tuple[int, int] = (1024, 768), method: 
     ``n`` synthetic scenes are rendered once; ``method`` is timed on one core, and so are
     closed and open loop (for their segmentation-time ratio), each frame from scratch; then
     the closed loop in a still-camera sequence (``closed, warm``: each scene's frame after
-    one of the same scene, the controller warm-started); then ``method``'s rate over a
+    one of the same scene, the controller warm-started), and the same with that frame's
+    books followed into the next (``closed, tracked``); then ``method``'s rate over a
     process pool of ``workers`` (default: all cores; none with one core). ``settings``:
     ``NAME=VALUE`` changes to the detector's settings, as ``rovis eval --set``, for every
     method timed.
@@ -311,6 +317,10 @@ def bench_pipeline(n: int = 30, *, size: tuple[int, int] = (1024, 768), method: 
         _, next_frames = render_frames(n, size=size, protocol=protocol, seed=seed, take=1)
         timings["closed, warm"] = time_pipeline(rig, next_frames, "closed", previous=frames,
                                                 cfg=cfg)
+        say("rovis bench: timing closed on one core, each frame's books followed from the "
+            "frame before")
+        timings["closed, tracked"] = time_pipeline(rig, next_frames, "closed", previous=frames,
+                                                   cfg=cfg, track=True)
     fps_all = None
     if workers > 1:
         say(f"rovis bench: timing {method} on {workers} cores")

@@ -127,11 +127,12 @@ def _detect_sequence(args: argparse.Namespace, detector: Any) -> int:
     progress = _Progress(len(pairs))
     writer = LinesWriter(args.json) if args.json else None
     want_images = bool(args.overlay or args.view)
-    books = 0
+    books = tracked = 0
     interrupted = False
     progress.show()
     try:
-        for outcome in run_sequence(detector, pairs, keep_images=want_images):
+        for outcome in run_sequence(detector, pairs, keep_images=want_images,
+                                    track_every=args.track):
             progress.clear()
             pair = outcome.pair
             if writer is not None:
@@ -143,7 +144,9 @@ def _detect_sequence(args: argparse.Namespace, detector: Any) -> int:
             else:
                 n = len(outcome.result.objects)
                 books += n
-                print(f"{pair.index:5d}  {pair.left}  {n} book{'s' if n != 1 else ''}")
+                tracked += outcome.result.tracked
+                print(f"{pair.index:5d}  {pair.left}  {n} book{'s' if n != 1 else ''}"
+                      + ("  (tracked)" if outcome.result.tracked else ""))
                 _write_pictures(args, detector.rig, outcome.result, outcome.left_image,
                                 outcome.right_image, suffix=f"{pair.index:04d}")
             progress.done += 1
@@ -156,7 +159,8 @@ def _detect_sequence(args: argparse.Namespace, detector: Any) -> int:
             writer.close()
     ok = progress.done - progress.failed
     print(f"{progress.done} of {len(pairs)} frames: {ok} detected "
-          f"({books} book{'s' if books != 1 else ''}), "
+          f"({books} book{'s' if books != 1 else ''}"
+          + (f"; {tracked} frames tracked" if args.track > 1 else "") + "), "
           f"{progress.failed} skipped" + (", interrupted" if interrupted else "")
           + (f"; wrote {args.json}" if writer is not None else ""))
     if interrupted:
@@ -372,6 +376,11 @@ def build_parser() -> argparse.ArgumentParser:
                    "drawn on them: DIR/left.png, right.png (a sequence: NNNN_left.png …)")
     p.add_argument("--view", metavar="F.png", help="write the world model, top and side view "
                    "(a sequence: F_NNNN.png)")
+    p.add_argument("--track", metavar="N", type=_positive_int, default=1,
+                   help="a still camera's sequence: detect every N frames and follow the books "
+                        "found in the frames between (tens of ms a frame; detects afresh where "
+                        "a book moved or went; new books wait for the next detection). "
+                        "Default 1: detect in every frame")
     p.set_defaults(func=_cmd_detect)
 
     p = sub.add_parser("calib", help="read a calibration in any supported format, print it, "

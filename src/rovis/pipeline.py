@@ -36,10 +36,12 @@ from rovis.imageio import to_gray_u8
 from rovis.results import BookDetection, FrameResult, SegmentationInfo
 from rovis.segment import CascadeController, SegmentConfig, Segmentation, gradients
 from rovis.segment.edges import CANNY_LOW_RATIO, Gradients
+from rovis.segment.lines import Lines
 from rovis.segment.methods import METHODS, segment
 from rovis.segment.boundary import Fit, refine_quad, refine_quad_both, refine_sides, side_evidence
 from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
 from rovis.split import SplitConfig, split_union
+from rovis.track import TrackConfig, follow
 from rovis.stereo import (Match, StereoConfig, find_in_other_view, flat_rectangle, match_quads,
                           pool_pairs)
 from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pass, on_plane,
@@ -149,6 +151,7 @@ class DetectConfig:
     heightmap: HeightMapConfig = field(default_factory=HeightMapConfig)
     split: SplitConfig = field(default_factory=SplitConfig)
     side_height: SideHeightConfig = field(default_factory=SideHeightConfig)
+    track: TrackConfig = field(default_factory=TrackConfig)
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -220,6 +223,27 @@ def _parse_like(current: Any, text: str) -> Any:
     return text
 
 
+@dataclass(eq=False)
+class _Frame:
+    """One stereo pair made ready for segmentation (:meth:`Detector._prepare`), and the
+    frame's timing and warnings so far."""
+
+    rig: StereoRig = None  # type: ignore[assignment]  # its Q_L, Q_R give ideal pixels
+    raw_rig: StereoRig = None  # type: ignore[assignment]  # the raw images' rig
+    desk_plane: NDArray[np.float64] | None = None
+    ideal: dict[str, NDArray[np.uint8]] = field(default_factory=dict)
+    grads: dict[str, Gradients] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    timing: dict[str, float] = field(default_factory=dict)  # ms per stage
+    clock: float = field(default_factory=time.perf_counter)
+
+    def lap(self, stage: str) -> None:
+        """Add the time since the last lap to ``stage``."""
+        now = time.perf_counter()
+        self.timing[stage] = self.timing.get(stage, 0.0) + 1e3 * (now - self.clock)
+        self.clock = now
+
+
 @dataclass(frozen=True, eq=False)
 class Pair:
     """One cover's corners in both ideal images, the same physical corner at each index.
@@ -262,11 +286,17 @@ class Detector:
         # The last ROI per camera: a registered rig's (or a still marker's) is the same
         # every frame, so it is drawn once.
         self._masks: dict[str, tuple[bytes, NDArray[np.uint8]]] = {}
+        # The last frame's books for track(): (pair, book, each side's edge evidence per
+        # camera) each, and the segmentation info; None before a frame with the desk plane.
+        self._tracks: tuple[list[tuple[Pair, BookDetection, dict[str, NDArray[np.float64]]]],
+                            dict[str, SegmentationInfo]] | None = None
 
     def reset(self) -> None:
-        """Start a new sequence: forget the controllers' previous optimum."""
+        """Start a new sequence: forget the controllers' previous optimum and the books
+        :meth:`track` would follow."""
         for ctl in self._controllers.values():
             ctl.reset()
+        self._tracks = None
 
     def detect(self, left: NDArray[np.generic], right: NDArray[np.generic]) -> FrameResult:
         """Find the books in one stereo pair of raw images.
@@ -281,59 +311,16 @@ class Detector:
         ValueError
             An image that is empty, of the wrong size, or of an unsupported type.
         """
-        timing: dict[str, float] = {}
-        clock = time.perf_counter()
-
-        def lap(stage: str) -> None:
-            nonlocal clock
-            now = time.perf_counter()
-            timing[stage] = timing.get(stage, 0.0) + 1e3 * (now - clock)
-            clock = now
-
-        gray = {"left": to_gray_u8(left, "left image"), "right": to_gray_u8(right, "right image")}
-        self._check_sizes(gray["left"], gray["right"])
-        warnings: list[str] = []
-        rig = self.rig
-
-        # 1. marker → world frame, desk plane, ROI
-        T_world_marker, desk_plane = None, None
-        if rig.world_frame == "marker":
-            # Registered (rovis register): the world is the marker's frame and the desk is
-            # z = 0, known better than one frame's 10 cm marker can tell (~1° of tilt).
-            T_world_marker = np.eye(4)
-            desk_plane = marker.desk_plane_from_marker(T_world_marker)
-        elif self.cfg.use_marker:
-            T_world_marker = self._find_marker(gray, warnings)
-            if T_world_marker is not None:
-                if rig.world_frame == "left_camera":  # DESIGN §2: then the marker is the world
-                    rig = rig.with_world(geometry.invert_transform(T_world_marker) @ rig.T_world_left,
-                                         "marker")
-                    T_world_marker = np.eye(4)
-                desk_plane = marker.desk_plane_from_marker(T_world_marker)
-        lap("marker")
-
-        # 2. undistort, into a frame that holds the whole raw field of view (IdealView):
-        # from here on pixels are that frame's, and ``rig`` the rig whose Q_L, Q_R give them
-        view = self._view
-        raw_rig, rig = rig, self._view_rig(rig)
-        ideal = {cam: view.undistort(gray[cam], cam) for cam in gray}
-        lap("undistort")
+        f = self._prepare(left, right)
+        rig, raw_rig, view = f.rig, f.raw_rig, self._view
+        desk_plane, ideal, grads = f.desk_plane, f.ideal, f.grads
+        timing, warnings, lap = f.timing, f.warnings, f.lap
 
         # 3. segmentation per image
         segs: dict[str, Segmentation] = {}
-        grads: dict[str, Gradients] = {}
         steps: dict[str, float] = {}  # the segmentation's own steps, both images
         for cam in ("left", "right"):
-            mask = self._roi_mask(raw_rig, cam, T_world_marker)
-            grads[cam] = grad = gradients(ideal[cam], mask)
-            if view.grown:
-                # the black beyond the raw image's border is no edge to refine onto, and a
-                # side running there is out of view
-                for g in (grad.dx, grad.dy):
-                    cv2.bitwise_and(g, g, dst=g, mask=view.valid[cam])
-                grads[cam] = grad = replace(grad, seen=view.valid[cam])
-            lap("gradients")
-            segs[cam] = segment(ideal[cam], grad, self.cfg.method,
+            segs[cam] = segment(ideal[cam], grads[cam], self.cfg.method,
                                 controller=self._controllers[cam], cfg=self.cfg.segment,
                                 timing=steps)
             lap("segmentation")
@@ -427,7 +414,134 @@ class Detector:
             dropped += small
             warnings.append(f"{len(small)} cover(s) narrower than {self.cfg.min_cover_side * 100:g} "
                             "cm dropped: no book (a printed square, a label)")
-        # back to the rig's ideal pixels, and the raw images' (DESIGN §3)
+        info = {cam: SegmentationInfo(T_H=segs[cam].T_H, T_HG=segs[cam].T_HG, y=segs[cam].y,
+                                      iterations=segs[cam].iterations, n_quads=len(segs[cam]))
+                for cam in ("left", "right")}
+        self._remember(f, found, info)
+        return self._result(f, found, info, lines={cam: segs[cam].lines for cam in segs},
+                            covers={cam: segs[cam].corners for cam in segs}, dropped=dropped)
+
+    def track(self, left: NDArray[np.generic], right: NDArray[np.generic]) -> FrameResult | None:
+        """Follow the books of the previous frame into this one, or None where that fails.
+
+        Beyond the paper, for a still camera's sequence (``rovis detect --track N``): each
+        book the last :meth:`detect` (or :meth:`track`) returned is looked for where it
+        was, each side of its cover refit to the gradient within
+        ``TrackConfig.window_px`` in both images, and one rectangle parallel to the desk
+        fitted to both images' corners where one fits (:func:`rovis.track.follow`). No
+        segmentation runs, so a frame costs the undistortion, the gradients and a few side
+        fits. It does not look for new books: the caller runs :meth:`detect` every few
+        frames.
+
+        Returns None (the caller then runs :meth:`detect`) when there is no previous frame,
+        no desk plane, or any book is not where it was: a side that lost its edge, a corner
+        whose sides no longer meet near it, or a cover that now fails the pose checks.
+
+        Raises
+        ------
+        ValueError
+            As :meth:`detect`, for an image it cannot use.
+        """
+        if self._tracks is None:
+            return None
+        f = self._prepare(left, right)
+        if f.desk_plane is None:
+            return None
+        previous, info = self._tracks
+        strength = {cam: CANNY_LOW_RATIO * (info[cam].T_H or self.cfg.segment.open_T_H)
+                    for cam in info}
+        found: list[tuple[Pair, BookDetection]] = []
+        for pair, book, evidence in previous:
+            moved = follow(f.grads, {"left": book.corners_left_px, "right": book.corners_right_px},
+                           evidence, book.corners_world,
+                           f.rig.Q_L, f.rig.Q_R, f.desk_plane, strength, self.cfg.track)
+            if moved is None:
+                return None
+            P, c_left, c_right, reproj = moved
+            pose = geometry.pose_from_corners(P, f.desk_plane)
+            pair = replace(pair, left=c_left, right=c_right)
+            if self._pose_fails(pose, P, f.desk_plane, pair):
+                return None
+            found.append((pair, replace(book, pose=pose, corners_world=P, corners_left_px=c_left,
+                                        corners_right_px=c_right, reprojection_error_px=reproj)))
+        f.lap("track")
+        info = {cam: replace(i, iterations=0) for cam, i in info.items()}
+        self._tracks = ([(pair, book, evidence) for (pair, book), (_, _, evidence)
+                         in zip(found, previous)], info)
+        covers = {"left": [b.corners_left_px for _, b in found],
+                  "right": [b.corners_right_px for _, b in found]}
+        return self._result(f, found, info, tracked=True,
+                            covers={cam: np.array(c).reshape(-1, 4, 2) for cam, c in covers.items()})
+
+    def _prepare(self, left: NDArray[np.generic], right: NDArray[np.generic]) -> _Frame:
+        """Steps 1–2 of Fig. 2 and the gradients: the marker (world frame, desk plane, ROI),
+        both images undistorted and their Sobel gradients inside the ROI."""
+        f = _Frame()
+        gray = {"left": to_gray_u8(left, "left image"), "right": to_gray_u8(right, "right image")}
+        self._check_sizes(gray["left"], gray["right"])
+        rig = self.rig
+
+        # 1. marker → world frame, desk plane, ROI
+        T_world_marker = None
+        if rig.world_frame == "marker":
+            # Registered (rovis register): the world is the marker's frame and the desk is
+            # z = 0, known better than one frame's 10 cm marker can tell (~1° of tilt).
+            T_world_marker = np.eye(4)
+            f.desk_plane = marker.desk_plane_from_marker(T_world_marker)
+        elif self.cfg.use_marker:
+            T_world_marker = self._find_marker(gray, f.warnings)
+            if T_world_marker is not None:
+                if rig.world_frame == "left_camera":  # DESIGN §2: then the marker is the world
+                    rig = rig.with_world(geometry.invert_transform(T_world_marker) @ rig.T_world_left,
+                                         "marker")
+                    T_world_marker = np.eye(4)
+                f.desk_plane = marker.desk_plane_from_marker(T_world_marker)
+        f.lap("marker")
+
+        # 2. undistort, into a frame that holds the whole raw field of view (IdealView):
+        # from here on pixels are that frame's, and ``f.rig`` the rig whose Q_L, Q_R give them
+        view = self._view
+        f.raw_rig, f.rig = rig, self._view_rig(rig)
+        f.ideal = {cam: view.undistort(gray[cam], cam) for cam in gray}
+        f.lap("undistort")
+        for cam in ("left", "right"):
+            mask = self._roi_mask(f.raw_rig, cam, T_world_marker)
+            grad = gradients(f.ideal[cam], mask)
+            if view.grown:
+                # the black beyond the raw image's border is no edge to refine onto, and a
+                # side running there is out of view
+                for g in (grad.dx, grad.dy):
+                    cv2.bitwise_and(g, g, dst=g, mask=view.valid[cam])
+                grad = replace(grad, seen=view.valid[cam])
+            f.grads[cam] = grad
+        f.lap("gradients")
+        return f
+
+    def _remember(self, f: _Frame, found: list[tuple[Pair, BookDetection]],
+                  info: dict[str, SegmentationInfo]) -> None:
+        """Keep what :meth:`track` needs of this frame: each book's quads and the edge
+        evidence along its sides in both images (None without the desk plane)."""
+        if f.desk_plane is None:
+            self._tracks = None
+            return
+        strength = {cam: CANNY_LOW_RATIO * (info[cam].T_H or self.cfg.segment.open_T_H)
+                    for cam in info}
+        self._tracks = ([(pair, book, {
+            "left": side_evidence(f.grads["left"], book.corners_left_px,
+                                  self.cfg.track.evidence * strength["left"]),
+            "right": side_evidence(f.grads["right"], book.corners_right_px,
+                                   self.cfg.track.evidence * strength["right"])})
+            for pair, book in found], info)
+
+    def _result(self, f: _Frame, found: list[tuple[Pair, BookDetection]],
+                info: dict[str, SegmentationInfo], *, lines: dict[str, Lines] | None = None,
+                covers: dict[str, NDArray[np.float64]] | None = None,
+                dropped: Sequence[tuple[str, NDArray[np.float64], NDArray[np.float64]]] = (),
+                tracked: bool = False) -> FrameResult:
+        """The frame's result, corners back in the rig's ideal pixels and in the raw
+        images' (DESIGN §3)."""
+        view, raw_rig = self._view, f.raw_rig
+
         def raw(px: NDArray[np.float64], cam: Literal["left", "right"]) -> NDArray[np.float64]:
             return raw_rig.distort_points(view.to_rig_ideal(px), cam)
 
@@ -435,16 +549,13 @@ class Detector:
                            corners_right_px=raw(book.corners_right_px, "right"))
                    for i, (_, book) in enumerate(found)]
         return FrameResult(
-            objects=objects, desk_plane=None if desk_plane is None else desk_plane.copy(),
-            world_frame=rig.world_frame,
-            segmentation={cam: SegmentationInfo(T_H=segs[cam].T_H, T_HG=segs[cam].T_HG, y=segs[cam].y,
-                                                iterations=segs[cam].iterations,
-                                                n_quads=len(segs[cam]))
-                          for cam in ("left", "right")},
-            timing_ms=timing, warnings=warnings, T_world_left=rig.T_world_left.copy(),
-            lines={cam: segs[cam].lines.shifted(-view.offset) for cam in segs},
-            covers={cam: view.to_rig_ideal(segs[cam].corners) for cam in segs},
-            dropped=[(why, view.to_rig_ideal(a), view.to_rig_ideal(b)) for why, a, b in dropped])
+            objects=objects, desk_plane=None if f.desk_plane is None else f.desk_plane.copy(),
+            world_frame=f.rig.world_frame, segmentation=info, timing_ms=f.timing,
+            warnings=f.warnings, T_world_left=f.rig.T_world_left.copy(),
+            lines={cam: ls.shifted(-view.offset) for cam, ls in (lines or {}).items()},
+            covers={cam: view.to_rig_ideal(c) for cam, c in (covers or {}).items()},
+            dropped=[(why, view.to_rig_ideal(a), view.to_rig_ideal(b)) for why, a, b in dropped],
+            tracked=tracked)
 
     # -- stages ---------------------------------------------------------------------------
 

@@ -123,6 +123,8 @@ class FrameResult:
     covers: dict[str, NDArray[np.float64]] = field(default_factory=dict)
     dropped: list[tuple[str, NDArray[np.float64], NDArray[np.float64]]] = field(
         default_factory=list)
+    # the books followed from the previous frame (Detector.track), not detected afresh
+    tracked: bool = False
 
     def __len__(self) -> int:
         return len(self.objects)
@@ -136,7 +138,7 @@ class FrameResult:
             T_world_left=_round(self.T_world_left, 9),
             segmentation={cam: info.to_dict() for cam, info in self.segmentation.items()},
             timing_ms={k: _round(v, 3) for k, v in self.timing_ms.items()},
-            warnings=list(self.warnings))
+            warnings=list(self.warnings), tracked=self.tracked)
         return out
 
     def to_json(self, **extra: Any) -> str:

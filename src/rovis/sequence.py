@@ -137,8 +137,12 @@ def pair_images(left: list[Path], right: list[Path]) -> list[FramePair]:
     return [FramePair(i, l_, r_) for i, (l_, r_) in enumerate(zip(left, right))]
 
 
-def run_pair(detector: Detector, pair: FramePair, *, keep_images: bool = False) -> FrameOutcome:
-    """Read one pair and detect; every expected failure becomes the outcome's ``error``."""
+def run_pair(detector: Detector, pair: FramePair, *, keep_images: bool = False,
+             track: bool = False) -> FrameOutcome:
+    """Read one pair and detect; every expected failure becomes the outcome's ``error``.
+
+    ``track``: follow the previous frame's books (:meth:`Detector.track`) and detect only
+    where that fails."""
     if pair.left is None or pair.right is None:
         have = pair.left or pair.right
         side = "right" if pair.right is None else "left"
@@ -146,7 +150,9 @@ def run_pair(detector: Detector, pair: FramePair, *, keep_images: bool = False) 
     try:
         left = read_gray(pair.left)
         right = read_gray(pair.right)
-        result = detector.detect(left, right)
+        result = detector.track(left, right) if track else None
+        if result is None:
+            result = detector.detect(left, right)
     except (ValueError, OSError, cv2.error) as exc:  # this frame's input, not the run's
         return FrameOutcome(pair, error=" ".join(str(exc).split()))
     if keep_images:
@@ -155,14 +161,24 @@ def run_pair(detector: Detector, pair: FramePair, *, keep_images: bool = False) 
 
 
 def run_sequence(detector: Detector, pairs: list[FramePair], *, keep_images: bool = False,
+                 track_every: int = 0,
                  on_frame: Callable[[FrameOutcome], None] | None = None) -> Iterator[FrameOutcome]:
     """Detect in each pair in order with one detector (warm-started controllers).
 
+    ``track_every`` > 1: a still camera's sequence; detect in the first frame and every
+    ``track_every``-th, and in the frames between follow the books already found
+    (:meth:`Detector.track`, a few tens of milliseconds), detecting afresh in any frame
+    where a book is not where it was. New books are found at the next detection.
+
     Yields each :class:`FrameOutcome` as it is done; ``on_frame`` is called with it first.
     """
+    if track_every < 0:
+        raise ValueError(f"track_every: expected 0 (off) or a positive number of frames, "
+                         f"got {track_every}")
     detector.reset()
-    for pair in pairs:
-        outcome = run_pair(detector, pair, keep_images=keep_images)
+    for k, pair in enumerate(pairs):
+        track = track_every > 1 and k % track_every != 0
+        outcome = run_pair(detector, pair, keep_images=keep_images, track=track)
         if on_frame is not None:
             on_frame(outcome)
         yield outcome

@@ -1,0 +1,102 @@
+"""Following known books into the next frame of a still camera (rovis.track, Detector.track)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import cv2
+import numpy as np
+import pytest
+
+from rovis.calib import save_calibration
+from rovis.cli import main
+from rovis.evaluate import match_books
+from rovis.pipeline import Detector
+from rovis.track import TrackConfig
+from rovis.synth import render, sample_scene
+
+
+@pytest.fixture(scope="module")
+def still():
+    """One scene, two frames of it with different sensor noise, and the books detected in
+    the first (a detector that has seen it)."""
+    sc = sample_scene(11, lux=500.0)
+    first, second = render(sc, 11), render(sc, 12)
+    det = Detector(sc.rig)
+    detected = det.detect(first.left, first.right)
+    assert len(detected.objects) >= 3  # the scene must give something to follow
+    return sc, first, second, det, detected
+
+
+def _follow(det, detected_frame, frame):
+    det.reset()
+    det.detect(detected_frame.left, detected_frame.right)
+    return det.track(frame.left, frame.right)
+
+
+def test_a_still_scene_is_followed_where_it_was_detected(still):
+    sc, first, second, det, detected = still
+    tracked = _follow(det, first, second)
+    assert tracked is not None and tracked.tracked
+    assert not detected.tracked
+    assert len(tracked.objects) == len(detected.objects)
+    for a, b in zip(detected.objects, tracked.objects):
+        # the same book measured again in new sensor noise: millimetres apart at most
+        assert np.linalg.norm(a.pose.center - b.pose.center) < 0.004
+        turn = abs((a.pose.yaw_deg - b.pose.yaw_deg + 90.0) % 180.0 - 90.0)
+        assert turn < 1.0
+        assert a.source == b.source
+        assert b.corners_left_px.shape == (4, 2) and b.corners_right_px.shape == (4, 2)
+    # and as close to the truth as the detection: each book the detection had within 1 cm
+    # on every axis is still within 1 cm
+    truth = np.array([b["center"] for b in first.truth["books"]])
+
+    def within_1cm(result):
+        c = np.array([o.pose.center for o in result.objects])
+        return {t for t, e in match_books(truth, c) if np.all(np.abs(c[e] - truth[t]) <= 0.01)}
+
+    assert within_1cm(detected) and within_1cm(detected) <= within_1cm(tracked)
+
+
+def test_a_book_taken_away_or_moved_is_noticed(still):
+    sc, first, _, det, _ = still
+    gone = render(replace(sc, books=sc.books[1:]), 13)
+    assert _follow(det, first, gone) is None
+    # every book pushed 2 cm along the desk: beyond the side search, the edges are elsewhere
+    pushed = tuple(replace(b, center=(b.center[0] + 0.02, *b.center[1:])) for b in sc.books)
+    moved = render(replace(sc, books=pushed), 14)
+    assert _follow(det, first, moved) is None
+
+
+def test_nothing_to_follow_before_a_detection_or_after_a_reset(still):
+    sc, first, second, _, _ = still
+    det = Detector(sc.rig)
+    assert det.track(second.left, second.right) is None
+    det.detect(first.left, first.right)
+    det.reset()
+    assert det.track(second.left, second.right) is None
+
+
+def test_bad_settings_are_refused():
+    with pytest.raises(ValueError, match="track"):
+        TrackConfig(window_px=0.0)
+    with pytest.raises(ValueError, match="track"):
+        TrackConfig(keep=1.5)
+
+
+def test_detect_track_follows_between_detections(still, tmp_path, capsys):
+    sc, first, second, _, _ = still
+    for k, frame in enumerate((first, second, second, first)):
+        for cam in ("left", "right"):
+            cv2.imwrite(str(tmp_path / f"{cam}{k:02d}.png"), getattr(frame, cam))
+    save_calibration(sc.rig, tmp_path / "calib.yaml")
+    out = tmp_path / "frames.jsonl"
+    assert main(["detect", str(tmp_path / "left*.png"), str(tmp_path / "right*.png"),
+                 "--calib", str(tmp_path / "calib.yaml"), "--json", str(out),
+                 "--track", "3"]) == 0
+    frames = [json.loads(line) for line in out.read_text().splitlines()]
+    # frames 0 and 3 detected, 1 and 2 followed
+    assert [f["tracked"] for f in frames] == [False, True, True, False]
+    assert all(len(f["objects"]) == len(frames[0]["objects"]) for f in frames)
+    assert "2 frames tracked" in capsys.readouterr().out
