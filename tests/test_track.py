@@ -69,12 +69,16 @@ def test_a_book_taken_away_or_moved_is_noticed(still):
     assert _follow(det, first, moved) is None
 
 
-def test_nothing_to_follow_before_a_detection_or_after_a_reset(still):
+def test_nothing_to_follow_before_a_detection_after_a_reset_or_on_an_empty_desk(still):
     sc, first, second, _, _ = still
     det = Detector(sc.rig)
     assert det.track(second.left, second.right) is None
     det.detect(first.left, first.right)
     det.reset()
+    assert det.track(second.left, second.right) is None
+    # an empty desk is watched by detecting: a book put down shows at once
+    empty = render(replace(sc, books=()), 15)
+    assert len(det.detect(empty.left, empty.right).objects) == 0
     assert det.track(second.left, second.right) is None
 
 

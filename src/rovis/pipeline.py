@@ -434,7 +434,7 @@ class Detector:
         frames.
 
         Returns None (the caller then runs :meth:`detect`) when there is no previous frame,
-        no desk plane, or any book is not where it was: a side that lost its edge, a corner
+        no book in it (a desk to watch for books put down), no desk plane, or any book is not where it was: a side that lost its edge, a corner
         whose sides no longer meet near it, or a cover that now fails the pose checks.
 
         Raises
@@ -442,7 +442,7 @@ class Detector:
         ValueError
             As :meth:`detect`, for an image it cannot use.
         """
-        if self._tracks is None:
+        if self._tracks is None or not self._tracks[0]:
             return None
         f = self._prepare(left, right)
         if f.desk_plane is None:
