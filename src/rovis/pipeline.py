@@ -312,7 +312,7 @@ class Detector:
             An image that is empty, of the wrong size, or of an unsupported type.
         """
         f = self._prepare(left, right)
-        rig, raw_rig, view = f.rig, f.raw_rig, self._view
+        rig = f.rig
         desk_plane, ideal, grads = f.desk_plane, f.ideal, f.grads
         timing, warnings, lap = f.timing, f.warnings, f.lap
 
