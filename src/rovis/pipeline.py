@@ -434,8 +434,9 @@ class Detector:
         frames.
 
         Returns None (the caller then runs :meth:`detect`) when there is no previous frame,
-        no book in it (a desk to watch for books put down), no desk plane, or any book is not where it was: a side that lost its edge, a corner
-        whose sides no longer meet near it, or a cover that now fails the pose checks.
+        no book in it (a desk to watch for books put down), no desk plane, or any book is
+        not where it was: a side that lost its edge, a corner whose sides no longer meet
+        near it, or a cover that now fails the pose checks.
 
         Raises
         ------
@@ -448,8 +449,7 @@ class Detector:
         if f.desk_plane is None:
             return None
         previous, info = self._tracks
-        strength = {cam: CANNY_LOW_RATIO * (info[cam].T_H or self.cfg.segment.open_T_H)
-                    for cam in info}
+        strength = self._edge_strength(info)
         found: list[tuple[Pair, BookDetection]] = []
         for pair, book, evidence in previous:
             moved = follow(f.grads, {"left": book.corners_left_px, "right": book.corners_right_px},
@@ -524,8 +524,7 @@ class Detector:
         if f.desk_plane is None:
             self._tracks = None
             return
-        strength = {cam: CANNY_LOW_RATIO * (info[cam].T_H or self.cfg.segment.open_T_H)
-                    for cam in info}
+        strength = self._edge_strength(info)
         self._tracks = ([(pair, book, {
             "left": side_evidence(f.grads["left"], book.corners_left_px,
                                   self.cfg.track.evidence * strength["left"]),
@@ -1154,10 +1153,11 @@ class Detector:
         trial = self._reconstruct_or_why(rig, flat, desk_plane, texture)
         return trial if trial[1] is not None else None
 
-    def _edge_strength(self, segs: dict[str, Segmentation]) -> dict[str, float]:
+    def _edge_strength(self, segs: dict[str, Segmentation] | dict[str, SegmentationInfo],
+                       ) -> dict[str, float]:
         """Per camera, the derivative across a line that counts as an edge: the Canny low
         threshold of the image's segmentation (LSD and contours set none: the open
-        loop's)."""
+        loop's). ``segs``: each image's segmentation, or what the result keeps of it."""
         return {cam: CANNY_LOW_RATIO * (seg.T_H or self.cfg.segment.open_T_H)
                 for cam, seg in segs.items()}
 
