@@ -483,7 +483,9 @@ def refine_segment(grad: Gradients, p_a: NDArray[np.float64], p_b: NDArray[np.fl
         # Keep the segment's extent: re-centre on the projection of the old midpoint.
         point = point_new + ((point - point_new) @ d_new) * d_new
         d = d_new
-        half_width = 1.5  # the second pass only polishes
+        # The next pass samples the same window around the refitted line. (Narrowing it
+        # to ±1.5 px, as a dead assignment here once meant to, found 168 instead of 170
+        # build/t1 books, 142 instead of 146 within 1 cm.)
     return point, d
 
 
