@@ -1,0 +1,90 @@
+"""What each step beyond the paper buys: the closed loop with one step turned off at a time.
+
+Runs ``rovis eval DATASET --methods closed`` once with the detector's defaults and once per
+step below with that step off (``--set``), then prints one Markdown table: books found
+(and within the 1 cm grasp tolerance along X, Y and Z), false positives per image, the
+matched books' mean |X|, |Y|, |Z| errors, and the median time per frame from
+``results.json`` (pass ``--workers 1`` for times not shared with another process).
+
+    python scripts/ablation.py build/t1 --workers 1 --work /tmp/ablation
+
+Each row is the command printed above the table; anyone can run it by hand.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+from pathlib import Path
+
+import numpy as np
+
+# (what is turned off, the settings that turn it off); the first row turns nothing off
+STEPS: list[tuple[str, list[str]]] = [
+    ("nothing (the defaults)", []),
+    ("covers of the other T_H (segment.union)", ["segment.union=false"]),
+    ("three-sided candidates and covers", ["segment.three_sided=false"]),
+    ("two-sided candidates", ["segment.two_sided=false", "segment.opposite_sided=false"]),
+    ("the candidate pool (stereo step 4)", ["stereo.pool=false"]),
+    ("completing a candidate in 3D", ["complete.enabled=false"]),
+    ("the one-image search (stereo step 3)", ["stereo.transfer=false"]),
+    ("the alternatives (stereo step 2)", ["stereo.alternatives=false"]),
+    ("the print's height test and placing", ["sweep.check=false", "sweep.transfer=false"]),
+    ("the height map", ["heightmap.enabled=false"]),
+    ("the facing sides' edge", ["facing.enabled=false"]),
+    ("the height from the sides", ["side_height.enabled=false"]),
+    ("the extent step", ["extent.grow=false", "extent.shrink=false"]),
+    ("the split of touching books", ["split.enabled=false"]),
+]
+
+
+def _row(results: Path) -> dict[str, float]:
+    """The closed loop's figures from one ``rovis eval`` folder's results.json."""
+    doc = json.loads((results / "results.json").read_text())
+    s = doc["summary"]["closed"]
+    times = [scene["timing_ms"]["closed"] for scene in doc["scenes"]
+             if "closed" in scene.get("timing_ms", {})]
+    return {"books": s["books"], "found": s["found"], "within": s["within_1cm"],
+            "fp": s["fp_per_image"], "x": 1e3 * s["errors"]["x"]["mean"],
+            "y": 1e3 * s["errors"]["y"]["mean"], "z": 1e3 * s["errors"]["z"]["mean"],
+            "ms": float(np.median(times)) if times else float("nan")}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("dataset", help="a folder written by rovis synth")
+    ap.add_argument("--work", default="build/ablation", help="where the eval folders go")
+    ap.add_argument("--workers", type=int, default=1, help="rovis eval workers (default: 1)")
+    ap.add_argument("--only", default=None,
+                    help="comma-separated row numbers to run (0: the defaults), e.g. 0,9")
+    args = ap.parse_args()
+    from rovis.cli import main as rovis
+
+    rows = list(enumerate(STEPS))
+    if args.only:
+        wanted = {int(k) for k in args.only.split(",")}
+        rows = [(k, step) for k, step in rows if k in wanted]
+    table = []
+    for k, (what, settings) in rows:
+        out = Path(args.work) / f"step{k:02d}"
+        argv = ["eval", args.dataset, "--methods", "closed", "--workers", str(args.workers),
+                "--out", str(out), "--no-plots"]
+        for s in settings:
+            argv += ["--set", s]
+        print("$ rovis " + " ".join(shlex.quote(a) for a in argv), flush=True)
+        if rovis(argv) != 0:
+            raise SystemExit(f"ablation.py: rovis eval failed for row {k} ({what})")
+        table.append((what, _row(out)))
+    print(f"\n{args.dataset}, closed loop, one step off at a time\n")
+    print("| off | books found | within 1 cm | false positives / image "
+          "| mean \\|X\\|, \\|Y\\|, \\|Z\\| mm | median ms / frame |")
+    print("|---|---|---|---|---|---|")
+    for what, r in table:
+        print(f"| {what} | {r['found']} of {r['books']} | {r['within']} | {r['fp']:.2f} "
+              f"| {r['x']:.1f}, {r['y']:.1f}, {r['z']:.1f} | {r['ms']:.0f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
