@@ -106,31 +106,13 @@ class CascadeController:
         open_pool = None
         if self.cfg.three_sided:
             # beyond the paper: covers with one side unseen, at the T_H whose covers were
-            # kept and the best few others; those a full candidate already gives (all four
-            # sides seen) are left out
+            # kept and the best few others
             ranked = sorted((e for e in seen.values() if e.y > 0), key=lambda e: -e.y)
             chosen = [best, *sources, *ranked[:self.cfg.three_sided_evaluations]]
             if not ranked:  # no cover at any T_H (y = 0): each evaluation may hold one
                 chosen += list(seen.values())
-            # one evaluation may appear as itself and as a copy with more covers
-            # (with_other_covers): the same lines and edge hits, asked once
-            chosen = [e for k, e in enumerate(chosen)
-                      if all(e.profile is not c.profile for c in chosen[:k])]
-            open_pool = without_near(candidate_pool(
-                [open_candidates(grad, e, self.cfg, area=area, timing=timing) for e in chosen],
-                self.cfg.pool_size), full, self.cfg.quads.duplicate_px)
-            if self.cfg.three_sided_support <= 1.0:
-                best, alternatives = with_three_sided_covers(
-                    best, alternatives, open_pool, self.cfg.three_sided_support,
-                    self.cfg.quads.max_overlap)
-            if self.cfg.two_sided:
-                # beyond the paper: and with two sides unseen, for stereo only (never a
-                # cover of one image)
-                two = without_near(candidate_pool(
-                    [two_sided_candidates(grad, e, self.cfg, area=area, timing=timing)
-                     for e in chosen], self.cfg.two_sided_size),
-                    Quads.concat([full, open_pool]), self.cfg.quads.duplicate_px)
-                open_pool = Quads.concat([open_pool, two])
+            best, alternatives, open_pool = with_open_candidates(
+                grad, best, alternatives, chosen, full, self.cfg, area=area, timing=timing)
         return finish(grad, best, iterations, timing=timing, alternatives=alternatives,
                       pool=full, refine=refine, open_pool=open_pool)
 
@@ -238,3 +220,32 @@ def with_three_sided_covers(best: Evaluation, alternatives: tuple[np.ndarray, ..
     if alternatives:
         alternatives = alternatives + tuple(np.zeros((0, 4, 2)) for _ in extra)
     return replace(best, covers=covers), alternatives
+
+
+def with_open_candidates(grad: Gradients, best: Evaluation, alternatives: tuple[np.ndarray, ...],
+                         chosen: Sequence[Evaluation], full: Quads, cfg: SegmentConfig, *,
+                         area: float, timing: dict[str, float] | None = None,
+                         ) -> tuple[Evaluation, tuple[np.ndarray, ...], Quads]:
+    """The candidates with sides unseen of the ``chosen`` evaluations (beyond the paper):
+    ``best`` with the clearly seen three-sided ones kept as covers
+    (:func:`with_three_sided_covers`, ``cfg.three_sided_support``), its ``alternatives``,
+    and :attr:`Segmentation.open_pool` (three-sided, then with ``cfg.two_sided`` two-sided
+    candidates, for stereo only), less those ``full`` (the four-sided pool) already holds.
+    The closed loop asks it of the T_H it kept and the best few others; a method with one
+    evaluation, of that one."""
+    # one evaluation may appear as itself and as a copy with more covers
+    # (with_other_covers): the same lines and edge hits, asked once
+    chosen = [e for k, e in enumerate(chosen)
+              if all(e.profile is not c.profile for c in chosen[:k])]
+    open_pool = without_near(candidate_pool(
+        [open_candidates(grad, e, cfg, area=area, timing=timing) for e in chosen],
+        cfg.pool_size), full, cfg.quads.duplicate_px)
+    if cfg.three_sided_support <= 1.0:
+        best, alternatives = with_three_sided_covers(
+            best, alternatives, open_pool, cfg.three_sided_support, cfg.quads.max_overlap)
+    if cfg.two_sided:
+        two = without_near(candidate_pool(
+            [two_sided_candidates(grad, e, cfg, area=area, timing=timing) for e in chosen],
+            cfg.two_sided_size), Quads.concat([full, open_pool]), cfg.quads.duplicate_px)
+        open_pool = Quads.concat([open_pool, two])
+    return best, alternatives, open_pool

@@ -1,7 +1,9 @@
 """Segmentation methods selectable by name: the paper's closed loop and the baselines.
 
 Every method ends in the same downstream chain (cover selection, sub-pixel refinement,
-eq. 1 corner order), so their results differ only by how edges and lines are found:
+eq. 1 corner order, and for stereo its candidates and those with sides unseen:
+:attr:`Segmentation.pool`, :attr:`Segmentation.open_pool`), so their results differ only
+by how edges and lines are found:
 
 - ``closed``: the cascade controller of §3.B (eq. 2);
 - ``open``: fixed T_H, T_HG (tuned once at 500 lx);
@@ -20,9 +22,9 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from rovis.segment.boundary import (Evaluation, SegmentConfig, Segmentation, evaluate, finish,
-                                    roi_area)
-from rovis.segment.control import CascadeController
+from rovis.segment.boundary import (Evaluation, SegmentConfig, Segmentation, candidate_pool,
+                                    evaluate, finish, roi_area)
+from rovis.segment.control import CascadeController, with_open_candidates
 from rovis.segment.edges import Gradients, canny, linear_gradients
 from rovis.segment.lines import Lines, suppress_duplicates, support_profile
 from rovis.segment.quads import CoverSelection, Quads, candidate_quads
@@ -66,14 +68,15 @@ def segment(gray: NDArray[np.uint8], grad: Gradients, method: str = "closed", *,
         more = ()
         if cfg.lsd:  # beyond the paper: a second line source's covers (SegmentConfig.lsd)
             clock = time.perf_counter()
-            more = (_lsd(gray, grad, cfg),)
+            # its covers only: the loop's own evaluations fill the pool and the open one
+            more = (replace(_lsd(gray, grad, cfg), selection=None, all_lines=None, profile=None),)
             if timing is not None:
                 timing["lsd"] = timing.get("lsd", 0.0) + 1e3 * (time.perf_counter() - clock)
         return (controller or CascadeController(cfg, warm_start=False)).segment(
             grad, timing=timing, more=more, refine=refine)
     if method == "open":
-        return finish(grad, evaluate(grad, cfg.open_T_H, cfg, T_HG=cfg.open_T_HG, timing=timing),
-                      1, timing=timing, pool_size=cfg.pool_size, refine=refine)
+        return _finish_one(grad, evaluate(grad, cfg.open_T_H, cfg, T_HG=cfg.open_T_HG,
+                                          timing=timing), cfg, timing=timing, refine=refine)
     if method in ("auto-median", "auto-otsu"):
         pixels = gray[grad.mask > 0] if grad.mask is not None else gray.ravel()
         if pixels.size == 0:
@@ -86,15 +89,29 @@ def segment(gray: NDArray[np.uint8], grad: Gradients, method: str = "closed", *,
                                       cv2.THRESH_BINARY | cv2.THRESH_OTSU)[0])
             T_L = 0.5 * T_H
         T_H = max(T_H, 1.0)
-        return finish(grad, evaluate(grad, T_H, cfg, T_HG=cfg.open_T_HG, T_L=T_L, timing=timing),
-                      1, timing=timing, pool_size=cfg.pool_size, refine=refine)
+        return _finish_one(grad, evaluate(grad, T_H, cfg, T_HG=cfg.open_T_HG, T_L=T_L,
+                                          timing=timing), cfg, timing=timing, refine=refine)
     if method == "lsd":
-        return finish(grad, _lsd(gray, grad, cfg), 1, timing=timing, pool_size=cfg.pool_size,
-                      refine=refine)
+        return _finish_one(grad, _lsd(gray, grad, cfg), cfg, timing=timing, refine=refine)
     if method == "contour":
-        return finish(grad, _contours(grad, cfg), 1, timing=timing, pool_size=cfg.pool_size,
-                      refine=refine)
+        return _finish_one(grad, _contours(grad, cfg), cfg, timing=timing, refine=refine)
     raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
+
+
+def _finish_one(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
+                timing: dict[str, float] | None, refine: Gradients | None) -> Segmentation:
+    """A one-evaluation method's segmentation, with the candidates the closed loop adds
+    for stereo from its evaluations (``SegmentConfig.three_sided``, ``two_sided``:
+    :func:`rovis.segment.control.with_open_candidates`), from this one: every method
+    ends in the same downstream chain."""
+    full = candidate_pool([ev.selection.quads] if ev.selection is not None else [],
+                          cfg.pool_size)
+    open_pool, alternatives = None, ()
+    if cfg.three_sided:
+        ev, alternatives, open_pool = with_open_candidates(
+            grad, ev, alternatives, [ev], full, cfg, area=roi_area(grad), timing=timing)
+    return finish(grad, ev, 1, timing=timing, alternatives=alternatives, pool=full,
+                  refine=refine, open_pool=open_pool)
 
 
 _LSD = None
@@ -130,10 +147,11 @@ def _lsd(gray: NDArray[np.uint8], grad: Gradients, cfg: SegmentConfig) -> Evalua
     drawn = np.zeros(grad.shape, np.uint8)  # the segments are LSD's "edge pixels"
     for x1, y1, x2, y2 in segs[order]:
         cv2.line(drawn, (int(round(x1)), int(round(y1))), (int(round(x2)), int(round(y2))), 255, 1)
-    quads = candidate_quads(lines, support_profile(lines, drawn, seen=grad.seen), grad.shape,
-                            area, cfg.quads)
-    covers = CoverSelection(quads, cfg.quads).at(0)
-    return Evaluation(0.0, 0, 0.0, lines, covers, 1)
+    profile = support_profile(lines, drawn, seen=grad.seen)
+    selection = CoverSelection(candidate_quads(lines, profile, grad.shape, area, cfg.quads),
+                               cfg.quads)
+    return Evaluation(0.0, 0, 0.0, lines, selection.at(0), 1, selection=selection,
+                      all_lines=lines, profile=profile)
 
 
 def _contours(grad: Gradients, cfg: SegmentConfig) -> Evaluation:
@@ -157,4 +175,5 @@ def _contours(grad: Gradients, cfg: SegmentConfig) -> Evaluation:
     quads = Quads(np.tile(np.arange(4), (len(found), 1)) + 4 * np.arange(len(found))[:, None],
                   corners, np.ones((len(found), 4)), np.array([f[1] for f in found]),
                   np.zeros(len(found), np.int64))
-    return Evaluation(cfg.open_T_H, 0, 0.0, Lines.empty(), CoverSelection(quads, cfg.quads).at(0), 1)
+    selection = CoverSelection(quads, cfg.quads)
+    return Evaluation(cfg.open_T_H, 0, 0.0, Lines.empty(), selection.at(0), 1, selection=selection)
