@@ -51,20 +51,30 @@ def _row(results: Path) -> dict[str, float]:
             "ms": float(np.median(times)) if times else float("nan")}
 
 
+def _rows(text: str) -> set[int]:
+    """``--only``'s row numbers, each one of :data:`STEPS`' (argparse names a bad one)."""
+    try:
+        rows = {int(k) for k in text.split(",")}
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected row numbers like 0,9, got {text!r}") from None
+    if not rows <= set(range(len(STEPS))):
+        raise argparse.ArgumentTypeError(f"rows are 0-{len(STEPS) - 1}, got {text!r}")
+    return rows
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dataset", help="a folder written by rovis synth")
     ap.add_argument("--work", default="build/ablation", help="where the eval folders go")
     ap.add_argument("--workers", type=int, default=1, help="rovis eval workers (default: 1)")
-    ap.add_argument("--only", default=None,
+    ap.add_argument("--only", default=None, type=_rows,
                     help="comma-separated row numbers to run (0: the defaults), e.g. 0,9")
     args = ap.parse_args()
     from rovis.cli import main as rovis
 
     rows = list(enumerate(STEPS))
-    if args.only:
-        wanted = {int(k) for k in args.only.split(",")}
-        rows = [(k, step) for k, step in rows if k in wanted]
+    if args.only is not None:
+        rows = [(k, step) for k, step in rows if k in args.only]
     table = []
     for k, (what, settings) in rows:
         out = Path(args.work) / f"step{k:02d}"
