@@ -32,6 +32,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the alternatives (stereo step 2)", ["stereo.alternatives=false"]),
     ("the print's height test and placing", ["sweep.check=false", "sweep.transfer=false"]),
     ("the height map", ["heightmap.enabled=false"]),
+    ("the smooth height map (covers without print)", ["heightmap.smooth=false"]),
     ("the facing sides' edge", ["facing.enabled=false"]),
     ("the height from the sides", ["side_height.enabled=false"]),
     ("the extent step", ["extent.grow=false", "extent.shrink=false"]),

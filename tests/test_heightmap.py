@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from rovis import geometry
-from rovis.heightmap import HeightMapConfig, height_map, raised_covers
+from rovis.heightmap import (HeightMap, HeightMapConfig, height_map, raised_covers,
+                             smooth_height_map)
 from rovis.pipeline import DetectConfig, Detector, with_settings
 from rovis.sweep import high_pass
 from rovis.synth import render, sample_scene
@@ -120,7 +121,75 @@ def test_the_pipeline_finds_the_photo_book_from_the_height_map_alone(photo_book)
     assert len(off.detect(r.left, r.right).objects) == 0
 
 
+@pytest.fixture(scope="module")
+def desk_book():
+    """A cover of the desk's own tone (no print, a mottled finish), 22 × 15 × 3 cm, alone
+    on the desk at 300 lx: the scene, its rendering and both ideal images."""
+    sc = sample_scene(13, lux=300.0, n_books=0)
+    b = Book(center=(0.42, 0.30, 0.03), yaw_deg=20.0, size=(0.22, 0.15, 0.03),
+             cover=CoverSpec(kind="desk", albedo=0.42, seed=5))
+    sc = replace(sc, books=(b,), papers=(), mugs=(), pens=(), cables=())
+    r = render(sc, 13)
+    return sc, r, ideal_images(sc.rig, r)
+
+
+def test_the_smooth_map_reads_a_cover_without_print(desk_book):
+    sc, r, ideal = desk_book
+    P = np.array(r.truth["books"][0]["corners"])
+    desk = np.asarray(r.truth["desk_plane"])
+    cfg = HeightMapConfig()
+    # the fine sweep: inside its outline the cover has nothing finer than its mottle to
+    # compare (alone on the desk, its outline still makes a patch; beside other books not)
+    tex = {cam: high_pass(img, 1.5) for cam, img in ideal.items()}
+    fine = height_map(tex["left"], tex["right"], sc.rig.Q_L, sc.rig.Q_R, desk, cfg=cfg)
+    assert np.isfinite(fine.height[_cover_mask(sc.rig, P, fine.height.shape)]).mean() < 0.05
+    # the smooth sweep, at half resolution: the cover's surface at its height
+    hm, Q_half, half = smooth_height_map(ideal["left"], ideal["right"], sc.rig.Q_L,
+                                         sc.rig.Q_R, desk, cfg=cfg)
+    assert hm.height.shape == (fine.height.shape[0] // 2, fine.height.shape[1] // 2)
+    cover = np.zeros(hm.height.shape, np.uint8)
+    cv2.fillConvexPoly(cover, np.rint(geometry.project(Q_half, P)).astype(np.int32), 1)
+    inside = hm.height[cv2.erode(cover, np.ones((9, 9), np.uint8)) > 0]
+    assert np.isfinite(inside).mean() > 0.5
+    assert abs(np.nanmedian(inside) - 0.03) < 0.004  # metres
+    covers = raised_covers(hm, Q_half, desk, cfg=half, erode_px=cfg.smooth_erode_px)
+    assert len(covers) >= 1  # the most pixels first (the desk's far edge may add a thin one)
+    corners, h, _ = covers[0]
+    assert abs(h - 0.03) <= 0.0045
+    # a rough rectangle, for the pipeline to snap to the edges: the wide windows, and the
+    # desk beside the book that only the left camera sees, matched at the cover's height,
+    # make the patch reach 1-2 cm past two of its sides
+    assert np.linalg.norm(corners.mean(axis=0)[:2] - P.mean(axis=0)[:2]) < 0.03
+    sides = sorted(np.linalg.norm(corners - np.roll(corners, -1, axis=0), axis=1))
+    np.testing.assert_allclose(sides, [0.15, 0.15, 0.22, 0.22], atol=0.03)
+
+
+def test_erosion_shrinks_a_patch_by_its_pixels():
+    # a flat patch 200 × 120 px at 2 cm in a synthetic map, seen straight down at 1 m
+    # a camera 1 m above the desk looking straight down: u = 320 + 1000 x / (1 - z), ...
+    Q = np.array([[1000.0, 0, -320, 320], [0, -1000.0, -240, 240], [0, 0, -1.0, 1.0]])
+    desk = np.array([0.0, 0.0, 1.0, 0.0])
+    height = np.full((480, 640), np.nan, np.float32)
+    height[180:300, 220:420] = 0.02
+    heights = np.arange(0.0, 0.075 + 1e-9, 0.003)
+    hm = HeightMap(height, heights, (0, 0, 640, 480))
+
+    def long_side(erode_px: int) -> float:
+        (corners, h, _), = raised_covers(hm, Q, desk, erode_px=erode_px)
+        assert abs(h - 0.02) <= 0.0045
+        return float(max(np.linalg.norm(corners - np.roll(corners, -1, axis=0), axis=1)))
+
+    # 1000 px per metre at 1 m, 1020 at 2 cm up; the pixel centres span 199 px
+    a, b = long_side(0), long_side(5)
+    assert a == pytest.approx(199 / 1020, abs=0.002)
+    assert a - b == pytest.approx(10 / 1020, abs=0.001)  # 5 px off each end
+
+
 def test_bad_settings_are_refused():
+    with pytest.raises(ValueError, match="heightmap"):
+        HeightMapConfig(smooth_window_px=10)
+    with pytest.raises(ValueError, match="heightmap"):
+        HeightMapConfig(smooth_erode_px=-1)
     with pytest.raises(ValueError, match="heightmap"):
         HeightMapConfig(window_px=8)
     with pytest.raises(ValueError, match="heightmap"):

@@ -42,8 +42,12 @@ def test_a_still_scene_is_followed_where_it_was_detected(still):
     assert not detected.tracked
     assert len(tracked.objects) == len(detected.objects)
     for a, b in zip(detected.objects, tracked.objects):
-        # the same book measured again in new sensor noise: millimetres apart at most
-        assert np.linalg.norm(a.pose.center - b.pose.center) < 0.004
+        # the same book measured again in new sensor noise: millimetres apart at most; but a
+        # book of the smooth height map (a desk-toned cover, 3 cm off to begin with: its faint
+        # sides let the new frame's refinement land elsewhere) moves by about a centimetre
+        # (docs/stereo.md, "Covers without print")
+        assert np.linalg.norm(a.pose.center - b.pose.center) < (
+            0.015 if a.source == "height map" else 0.004)
         turn = abs((a.pose.yaw_deg - b.pose.yaw_deg + 90.0) % 180.0 - 90.0)
         assert turn < 1.0
         assert a.source == b.source

@@ -21,7 +21,7 @@ both images, refines to their edges and puts through the pose checks like any ot
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -30,7 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from rovis import geometry
 from rovis.segment.edges import Gradients
 from rovis.segment.quads import quad_overlap
-from rovis.sweep import _plane_frame, plane_homography
+from rovis.sweep import _plane_frame, high_pass, plane_homography
 
 
 @dataclass(frozen=True)
@@ -67,12 +67,20 @@ class HeightMapConfig:
     snap_reach: float = 0.012
     snap_inward: float = 0.012
     min_side: float = 0.085
+    smooth: bool = True
+    smooth_sigma_px: float = 6.0
+    smooth_window_px: int = 11
+    smooth_min_texture: float = 0.3
+    smooth_erode_px: int = 2
 
     def __post_init__(self) -> None:
         if not (0 < self.step and self.max_height > self.min_height + self.step
-                and self.window_px >= 3 and self.window_px % 2 == 1 and self.slab > 0):
+                and self.window_px >= 3 and self.window_px % 2 == 1 and self.slab > 0
+                and self.smooth_window_px >= 3 and self.smooth_window_px % 2 == 1
+                and self.smooth_sigma_px > 0 and self.smooth_erode_px >= 0):
             raise ValueError("heightmap: step and slab must be positive, max_height above "
-                             "min_height by more than a step, window_px odd and >= 3, "
+                             "min_height by more than a step, window_px and "
+                             "smooth_window_px odd and >= 3, smooth_sigma_px positive, smooth_erode_px >= 0, "
                              f"got {self}")
 
 
@@ -172,9 +180,52 @@ def height_map(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Array
     return HeightMap(height, heights, (x0, y0, x1, y1))
 
 
+def smooth_height_map(left: NDArray[np.uint8], right: NDArray[np.uint8], Q_L: ArrayLike,
+                      Q_R: ArrayLike, desk_plane: ArrayLike, *,
+                      box: tuple[int, int, int, int] | None = None,
+                      cfg: HeightMapConfig = HeightMapConfig(),
+                      ) -> tuple[HeightMap, NDArray[np.float64], HeightMapConfig]:
+    """The plane sweep for covers without fine print, at half resolution.
+
+    :func:`height_map` compares the print finer than a pixel or two; a cover of the desk's
+    colour, or a plain one with a mottled finish, has none, and its only edges are faint.
+    Its mottle (blobs of tens of pixels) still matches between the images at the cover's
+    height: this sweep compares the images band-passed at ``cfg.smooth_sigma_px``, in
+    ``cfg.smooth_window_px`` windows, on images halved (the band holds nothing finer, and
+    the sweep costs a quarter).
+
+    Parameters
+    ----------
+    left, right : ndarray, shape (H, W), uint8
+        Both ideal images.
+    Q_L, Q_R : array_like, shape (3, 4)
+        World → ideal pixel projections.
+    desk_plane : array_like, shape (4,)
+    box : (x0, y0, x1, y1), optional
+        Left pixels to compute, full resolution.
+
+    Returns
+    -------
+    (HeightMap, Q_L_half, cfg_half)
+        The map over the halved left image, that image's projection (for
+        :func:`raised_covers`) and the settings to cut covers from it with.
+    """
+    # a pixel (u, v) of the halved image covers (2u .. 2u + 2): u' + ½ = (u + ½) / 2
+    S = np.array([[0.5, 0.0, -0.25], [0.0, 0.5, -0.25], [0.0, 0.0, 1.0]])
+    Q_L2, Q_R2 = S @ np.asarray(Q_L, np.float64), S @ np.asarray(Q_R, np.float64)
+    band = [high_pass(cv2.pyrDown(img), cfg.smooth_sigma_px) for img in (left, right)]
+    h, w = band[0].shape
+    if box is not None:
+        x0, y0, x1, y1 = box
+        box = (x0 // 2, y0 // 2, min(-(-x1 // 2), w), min(-(-y1 // 2), h))
+    half = replace(cfg, window_px=cfg.smooth_window_px, min_texture=cfg.smooth_min_texture,
+                   min_pixels=max(cfg.min_pixels // 4, 1))
+    return height_map(band[0], band[1], Q_L2, Q_R2, desk_plane, box=box, cfg=half), Q_L2, half
+
+
 def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
                   side_range: tuple[float, float] = (0.05, 0.45),
-                  cfg: HeightMapConfig = HeightMapConfig(),
+                  cfg: HeightMapConfig = HeightMapConfig(), erode_px: int = 0,
                   ) -> list[tuple[NDArray[np.float64], float, float]]:
     """Cover candidates: rectangles fitted to patches of one height above the desk.
 
@@ -184,6 +235,8 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
     smallest rectangle. Rectangles with sides in ``side_range`` whose outline the patch
     fills (``cfg.min_fill``) are kept, the most pixels first; one overlapping a kept one
     by more than half (in the image) is the same cover seen in a neighbouring slab.
+    ``erode_px`` > 0 shrinks each slab's joined patches by that many pixels first (a wide
+    NCC window's patch reaches past the cover's edge by about half the window).
 
     Returns
     -------
@@ -205,6 +258,9 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
         if cv2.countNonZero(slab) < cfg.min_pixels:
             continue
         joined = cv2.morphologyEx(slab, cv2.MORPH_CLOSE, kernel)
+        if erode_px > 0:
+            joined = cv2.erode(joined, np.ones((2 * erode_px + 1,) * 2, np.uint8))
+            slab &= joined
         count, labels, stats, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
         origin = on_desk + h * n
         to_plane = np.linalg.inv(plane_homography(Q_L, origin, e1, e2)) @ shift  # → (u, v)

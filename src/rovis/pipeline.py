@@ -31,7 +31,8 @@ from rovis.calib import StereoRig
 from rovis.extent import (CompleteConfig, ExtentConfig, FacingConfig, SideHeightConfig,
                           complete_open, fit_pair_extent, height_from_sides,
                           settle_facing_sides)
-from rovis.heightmap import HeightMapConfig, height_map, raised_covers, snap_sides
+from rovis.heightmap import (HeightMapConfig, height_map, raised_covers, smooth_height_map,
+                             snap_sides)
 from rovis.imageio import to_gray_u8
 from rovis.results import BookDetection, FrameResult, SegmentationInfo
 from rovis.segment import CascadeController, SegmentConfig, Segmentation, gradients
@@ -383,7 +384,7 @@ class Detector:
             # beyond the paper: books that stand out of the desk in a height map
             if texture is None:
                 texture = self._texture(ideal)
-            found += self._from_height_map(rig, grads, found, desk_plane, texture)
+            found += self._from_height_map(rig, grads, found, desk_plane, texture, ideal)
             lap("heightmap")
         # a failed pair whose quad became a book through the one-image search is not lost
         dropped = [(why, pair.left, pair.right) for pair, book, why in books
@@ -905,6 +906,7 @@ class Detector:
     def _from_height_map(self, rig: StereoRig, grads: dict[str, Gradients],
                          found: list[tuple[Pair, BookDetection]], desk_plane: NDArray[np.float64],
                          texture: dict[str, NDArray[np.float32]],
+                         ideal: dict[str, NDArray[np.uint8]],
                          ) -> list[tuple[Pair, BookDetection]]:
         """Books where no book is yet, from the covers that stand out of the desk in a
         height map of the workspace (:mod:`rovis.heightmap`).
@@ -920,12 +922,17 @@ class Detector:
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         hm = height_map(texture["left"], texture["right"], rig.Q_L, rig.Q_R, desk_plane,
                         box=grads["left"].box, cfg=cfg.heightmap)
+        side_range = (0.8 * cfg.min_cover_side, cfg.max_cover_side)
+        rects = raised_covers(hm, rig.Q_L, desk_plane, side_range=side_range, cfg=cfg.heightmap)
+        if cfg.heightmap.smooth:  # then the covers without fine print
+            smooth, Q_half, half = smooth_height_map(ideal["left"], ideal["right"], rig.Q_L,
+                                                     rig.Q_R, desk_plane,
+                                                     box=grads["left"].box, cfg=cfg.heightmap)
+            rects += raised_covers(smooth, Q_half, desk_plane, side_range=side_range, cfg=half,
+                                   erode_px=cfg.heightmap.smooth_erode_px)
         taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
         out: list[tuple[Pair, BookDetection]] = []
-        for P, height, fill in raised_covers(hm, rig.Q_L, desk_plane,
-                                             side_range=(0.8 * cfg.min_cover_side,
-                                                         cfg.max_cover_side),
-                                             cfg=cfg.heightmap):
+        for P, height, fill in rects:
             # the corners in eq. 1's order in the left image
             left = geometry.project(rig.Q_L, P)
             order = [int(np.argmin(np.linalg.norm(left - c, axis=1))) for c in order_corners(left)]
