@@ -108,3 +108,30 @@ def test_detect_track_follows_between_detections(still, tmp_path, capsys):
     assert [f["tracked"] for f in frames] == [False, True, True, False]
     assert all(len(f["objects"]) == len(frames[0]["objects"]) for f in frames)
     assert "2 frames tracked" in capsys.readouterr().out
+
+
+def test_a_height_map_book_that_cannot_be_refit_is_held_where_it_was(still, monkeypatch):
+    import rovis.pipeline
+
+    sc, first, second, det, detected = still
+    held = [o for o in detected.objects if o.source == "height map"]
+    assert held, "the scene must hold a book the height map found"
+    real = rovis.pipeline.follow
+
+    def follow(grads, corners, evidence, P_before, *args, **kwargs):
+        # the height map's book shows no edge to refit in the new frame
+        if any(np.allclose(P_before, o.corners_world) for o in held):
+            return None
+        return real(grads, corners, evidence, P_before, *args, **kwargs)
+
+    monkeypatch.setattr(rovis.pipeline, "follow", follow)
+    tracked = _follow(det, first, second)
+    assert tracked is not None and len(tracked.objects) == len(detected.objects)
+    for a, b in zip(detected.objects, tracked.objects):
+        if a.source == "height map":
+            np.testing.assert_array_equal(a.corners_world, b.corners_world)  # as it was
+    det.cfg = replace(det.cfg, track=replace(det.cfg.track, hold_height_map=False))
+    try:
+        assert _follow(det, first, second) is None  # the frame is detected afresh
+    finally:
+        det.cfg = replace(det.cfg, track=replace(det.cfg.track, hold_height_map=True))

@@ -46,12 +46,18 @@ class TrackConfig:
         Pixels: the rectangle parallel to the desk fitted to the refit corners is the
         cover where every corner, in both images, lies within this of it; else the
         corners are triangulated one by one, as the detection did.
+    hold_height_map : bool
+        A book the height map found (``source`` "height map") whose sides the new frame
+        cannot refit is kept where it was, instead of the whole frame being detected
+        afresh: a desk-toned cover's faint sides tell nothing of whether it moved, and the
+        caller's next :meth:`rovis.pipeline.Detector.detect` checks it again.
     """
 
     window_px: float = 1.5
     evidence: float = 0.5
     keep: float = 0.6
     max_fit_px: float = 1.5
+    hold_height_map: bool = True
 
     def __post_init__(self) -> None:
         if not (self.window_px > 0 and self.evidence > 0 and 0 <= self.keep <= 1
