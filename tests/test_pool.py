@@ -13,7 +13,6 @@ from rovis import geometry
 from rovis.pipeline import DetectConfig, Detector, _is_union, with_settings
 from rovis.segment import gradients
 from rovis.segment.boundary import Segmentation
-from rovis.segment.lines import Lines
 from rovis.segment.quads import Quads, order_corners
 from rovis.stereo import flat_rectangle, pool_pairs
 from rovis.synth import render, sample_scene
