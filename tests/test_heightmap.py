@@ -156,9 +156,9 @@ def test_the_smooth_map_reads_a_cover_without_print(desk_book):
     assert len(covers) >= 1  # the most pixels first (the desk's far edge may add a thin one)
     corners, h, _ = covers[0]
     assert abs(h - 0.03) <= 0.0045
-    # a rough rectangle, for the pipeline to snap to the edges: the wide windows, and the
-    # desk beside the book that only the left camera sees, matched at the cover's height,
-    # make the patch reach 1-2 cm past two of its sides
+    # a rough rectangle, for the pipeline to snap to the edges: the patch reaches 1-2 cm
+    # past two of its sides (the wide windows; likely also the desk beside the book that
+    # only the left camera sees, matched at the cover's height)
     assert np.linalg.norm(corners.mean(axis=0)[:2] - P.mean(axis=0)[:2]) < 0.03
     sides = sorted(np.linalg.norm(corners - np.roll(corners, -1, axis=0), axis=1))
     np.testing.assert_allclose(sides, [0.15, 0.15, 0.22, 0.22], atol=0.03)

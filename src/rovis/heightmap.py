@@ -80,7 +80,8 @@ class HeightMapConfig:
                 and self.smooth_sigma_px > 0 and self.smooth_erode_px >= 0):
             raise ValueError("heightmap: step and slab must be positive, max_height above "
                              "min_height by more than a step, window_px and "
-                             "smooth_window_px odd and >= 3, smooth_sigma_px positive, smooth_erode_px >= 0, "
+                             "smooth_window_px odd and >= 3, smooth_sigma_px positive, "
+                             "smooth_erode_px >= 0, "
                              f"got {self}")
 
 

@@ -437,8 +437,8 @@ class Detector:
         Returns None (the caller then runs :meth:`detect`) when there is no previous frame,
         no book in it (a desk to watch for books put down), no desk plane, or any book is
         not where it was: a side that lost its edge, a corner whose sides no longer meet
-        near it, or a cover that now fails the pose checks. A height-map book whose sides
-        cannot be refit is held where it was instead (``TrackConfig.hold_height_map``).
+        near it, or a cover that now fails the pose checks. A height-map book that cannot
+        be followed is held where it was instead (``TrackConfig.hold_height_map``).
 
         Raises
         ------
@@ -458,7 +458,7 @@ class Detector:
                            evidence, book.corners_world,
                            f.rig.Q_L, f.rig.Q_R, f.desk_plane, strength, self.cfg.track)
             if moved is None and book.source == "height map" and self.cfg.track.hold_height_map:
-                found.append((pair, book))  # no edge to follow: held where it was
+                found.append((pair, book))  # nothing to follow it by: held where it was
                 continue
             if moved is None:
                 return None

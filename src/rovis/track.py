@@ -47,10 +47,12 @@ class TrackConfig:
         cover where every corner, in both images, lies within this of it; else the
         corners are triangulated one by one, as the detection did.
     hold_height_map : bool
-        A book the height map found (``source`` "height map") whose sides the new frame
-        cannot refit is kept where it was, instead of the whole frame being detected
-        afresh: a desk-toned cover's faint sides tell nothing of whether it moved, and the
-        caller's next :meth:`rovis.pipeline.Detector.detect` checks it again.
+        A book the height map found (``source`` "height map") that :func:`follow` cannot
+        measure again (a side not refit, or short of its edge evidence) is kept where it
+        was, instead of the whole frame being detected afresh: a desk-toned cover's faint
+        sides tell little of whether it moved, and the caller's next
+        :meth:`rovis.pipeline.Detector.detect` checks it again. A height-map book taken
+        away is therefore reported until then.
     """
 
     window_px: float = 1.5
