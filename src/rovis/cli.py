@@ -379,7 +379,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--track", metavar="N", type=_positive_int, default=1,
                    help="a still camera's sequence: detect every N frames and follow the books "
                         "found in the frames between (tens of ms a frame; detects afresh where "
-                        "a book moved or went; new books wait for the next detection). "
+                        "a book moved or went, but holds a height-map book it cannot follow; "
+                        "new books wait for the next detection). "
                         "Default 1: detect in every frame")
     p.set_defaults(func=_cmd_detect)
 
