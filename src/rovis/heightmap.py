@@ -64,8 +64,8 @@ class HeightMapConfig:
     slab: float = 0.0045
     min_pixels: int = 150
     min_fill: float = 0.4
-    snap_reach: float = 0.012
-    snap_inward: float = 0.012
+    snap_reach: float = 0.03  # a patch falls 1-4 cm short of, or beyond, a plain cover's edge
+    snap_inward: float = 0.02
     min_side: float = 0.085
     smooth: bool = True
     smooth_sigma_px: float = 6.0
