@@ -37,6 +37,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the height from the sides", ["side_height.enabled=false"]),
     ("the extent step", ["extent.grow=false", "extent.shrink=false"]),
     ("the split of touching books", ["split.enabled=false"]),
+    ("the trim by the height map", ["trim.enabled=false"]),
 ]
 
 

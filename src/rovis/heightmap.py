@@ -325,7 +325,7 @@ def _outline_fill(uv: NDArray[np.float64], rect: NDArray[np.float64], band: floa
 
 def snap_sides(P: ArrayLike, Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients], *,
                reach: float = 0.012, inward: float = 0.012, step: float = 0.001,
-               samples: int = 24) -> NDArray[np.float64]:
+               samples: int = 24, sides: tuple[int, ...] = (0, 1, 2, 3)) -> NDArray[np.float64]:
     """A cover rectangle's sides moved, in its plane, onto the edge both images show.
 
     Each side of ``P`` (4, 3) is slid along its outward normal within the cover's plane by
@@ -344,6 +344,8 @@ def snap_sides(P: ArrayLike, Q: dict[str, NDArray[np.float64]], grads: dict[str,
         ``{"left": Q_L, "right": Q_R}``.
     grads : dict of Gradients
         Both ideal images' gradients.
+    sides : tuple of int
+        The sides to move (side s from corner s to s + 1); the others stay.
 
     Returns
     -------
@@ -368,6 +370,8 @@ def snap_sides(P: ArrayLike, Q: dict[str, NDArray[np.float64]], grads: dict[str,
         if out @ (centre - a) > 0:
             out = -out
         outward[s] = out
+        if s not in sides:
+            continue
         pts = a + u[:, None] * (b - a)  # (S, 3) along the side
         moved = pts[None] + offsets[:, None, None] * out  # (O, S, 3)
         worst = None

@@ -29,10 +29,10 @@ from numpy.typing import NDArray
 from rovis import geometry, marker
 from rovis.calib import StereoRig
 from rovis.extent import (CompleteConfig, ExtentConfig, FacingConfig, SideHeightConfig,
-                          complete_open, fit_pair_extent, height_from_sides,
+                          _side_scores, complete_open, fit_pair_extent, height_from_sides,
                           settle_facing_sides)
-from rovis.heightmap import (HeightMapConfig, height_map, raised_covers, smooth_height_map,
-                             snap_sides)
+from rovis.heightmap import (HeightMap, HeightMapConfig, height_map, raised_covers,
+                             smooth_height_map, snap_sides)
 from rovis.imageio import to_gray_u8
 from rovis.results import BookDetection, FrameResult, SegmentationInfo
 from rovis.segment import CascadeController, SegmentConfig, Segmentation, gradients
@@ -43,6 +43,7 @@ from rovis.segment.boundary import Fit, refine_quad, refine_quad_both, refine_si
 from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
 from rovis.split import SplitConfig, split_union
 from rovis.track import TrackConfig, follow
+from rovis.trim import TrimConfig, cut_cover, height_profile, trim_side
 from rovis.stereo import (Match, StereoConfig, find_in_other_view, flat_rectangle, match_quads,
                           pool_pairs)
 from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pass, on_plane,
@@ -111,7 +112,9 @@ class DetectConfig:
     segment, stereo, extent, complete, facing, sweep, side_height
         :class:`SegmentConfig`, :class:`StereoConfig`, :class:`ExtentConfig`,
         :class:`CompleteConfig`, :class:`FacingConfig`, :class:`SweepConfig`,
-        :class:`SideHeightConfig`. ``side_height``: each cover moved to the height its
+        :class:`SideHeightConfig`. ``trim`` (:class:`rovis.trim.TrimConfig`): a cover
+        that takes in a neighbour at another height, cut back where the height map leaves
+        its height (beyond the paper; needs the height map). ``side_height``: each cover moved to the height its
         sides' edges agree on, before the extent step
         (:func:`rovis.extent.height_from_sides`; beyond the paper; needs the desk plane).
         ``extent``: moving each cover's sides to its edges in both images
@@ -151,6 +154,7 @@ class DetectConfig:
     sweep: SweepConfig = field(default_factory=SweepConfig)
     heightmap: HeightMapConfig = field(default_factory=HeightMapConfig)
     split: SplitConfig = field(default_factory=SplitConfig)
+    trim: TrimConfig = field(default_factory=TrimConfig)
     side_height: SideHeightConfig = field(default_factory=SideHeightConfig)
     track: TrackConfig = field(default_factory=TrackConfig)
 
@@ -380,11 +384,13 @@ class Detector:
             # pattern: on the real chessboard pairs, squares of the board)
             found += self._from_pool(rig, segs, grads, found, desk_plane, texture)
             lap("stereo")
+        maps: list[tuple[HeightMap, NDArray[np.float64], HeightMapConfig, int]] = []
         if self.cfg.heightmap.enabled and desk_plane is not None:
             # beyond the paper: books that stand out of the desk in a height map
             if texture is None:
                 texture = self._texture(ideal)
-            found += self._from_height_map(rig, grads, found, desk_plane, texture, ideal)
+            maps = self._height_maps(rig, grads, desk_plane, texture, ideal)
+            found += self._from_height_map(rig, grads, found, desk_plane, texture, maps)
             lap("heightmap")
         # a failed pair whose quad became a book through the one-image search is not lost
         dropped = [(why, pair.left, pair.right) for pair, book, why in books
@@ -409,6 +415,11 @@ class Detector:
         if self.cfg.split.enabled and desk_plane is not None:
             found = self._split_unions(rig, segs, grads, found, desk_plane, texture)
             lap("split")
+        # beyond the paper: a cover that spans a neighbour at another height, cut back
+        if self.cfg.trim.enabled and maps:
+            found = self._trimmed(rig, segs, grads, found, desk_plane, texture,
+                                  [(hm, Q) for hm, Q, _, _ in maps])
+            lap("trim")
         # last, since the extent step may grow a piece of a cover to the whole cover
         found, small = self._without_small(found)
         if small:
@@ -907,10 +918,78 @@ class Detector:
         top = sweep.heights[sweep.ncc >= sweep.best_ncc - plateau]
         return float(top.mean()) < self.cfg.stereo.min_height
 
+    def _height_maps(self, rig: StereoRig, grads: dict[str, Gradients],
+                     desk_plane: NDArray[np.float64], texture: dict[str, NDArray[np.float32]],
+                     ideal: dict[str, NDArray[np.uint8]],
+                     ) -> list[tuple[HeightMap, NDArray[np.float64], HeightMapConfig, int]]:
+        """The workspace's height maps (:mod:`rovis.heightmap`), finest first: each with
+        the projection of the image it is over, the settings to cut covers from it with
+        and the erosion of its patches (pixels)."""
+        cfg = self.cfg.heightmap
+        hm = height_map(texture["left"], texture["right"], rig.Q_L, rig.Q_R, desk_plane,
+                        box=grads["left"].box, cfg=cfg)
+        maps = [(hm, rig.Q_L, cfg, 0)]
+        if cfg.smooth:  # then the covers without fine print
+            smooth, Q_half, half = smooth_height_map(ideal["left"], ideal["right"], rig.Q_L,
+                                                     rig.Q_R, desk_plane,
+                                                     box=grads["left"].box, cfg=cfg)
+            maps.append((smooth, Q_half, half, cfg.smooth_erode_px))
+        return maps
+
+    def _trimmed(self, rig: StereoRig, segs: dict[str, Segmentation],
+                 grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
+                 desk_plane: NDArray[np.float64],
+                 texture: dict[str, NDArray[np.float32]] | None,
+                 maps: list[tuple[HeightMap, NDArray[np.float64]]],
+                 ) -> list[tuple[Pair, BookDetection]]:
+        """Each cover that goes on beyond its own height, cut there (:mod:`rovis.trim`),
+        the cut side moved onto the edge both images show (:func:`snap_sides`), and put
+        through the pose checks again; a cover the maps found is left as it is."""
+        cfg = self.cfg.trim
+        Q = {"left": rig.Q_L, "right": rig.Q_R}
+        up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+        strength = self._edge_strength(segs)
+        out = []
+        for pair, book in found:
+            if book.source == "height map":
+                out.append((pair, book))
+                continue
+            P = geometry.triangulate(rig.Q_L, rig.Q_R, pair.left, pair.right)
+            height = float(np.mean(geometry.plane_distance(desk_plane, P)))
+            P = P - np.outer((P - P.mean(axis=0)) @ up, up)  # onto the cover plane
+            moved = False
+            for _ in range(2):  # a cover over two others, one along each axis
+                cuts = sorted(((c[2], axis, c[0], c[1]) for axis in (0, 1) if (c := trim_side(
+                    height_profile(P, axis, maps, cfg), height, cfg)) is not None), reverse=True)
+                for score, axis, end, amount in cuts:  # the clearest step that is an edge
+                    cut, side = cut_cover(P, axis, end, amount)
+                    snapped = snap_sides(cut, Q, grads, reach=cfg.snap_reach,
+                                         inward=cfg.snap_inward, sides=(side,))
+                    # the cut side must be the cover's edge in both images (where the map
+                    # is wrong, plain print matched at the desk's height, there is none),
+                    # unless the step is clear: one desk-toned cover on another shows none
+                    if _side_scores(snapped[None], side, (side + 1) % 4, Q, grads, strength,
+                                    self.cfg.extent)[0][0]:
+                        P, moved = snapped, True
+                        break
+                    if score >= cfg.min_score_unseen:
+                        P, moved = cut, True
+                        break
+                else:
+                    break
+            if moved:
+                trial = replace(pair, left=geometry.project(rig.Q_L, P),
+                                right=geometry.project(rig.Q_R, P))
+                new_pair, new_book, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
+                if new_book is not None:
+                    pair, book = new_pair, new_book
+            out.append((pair, book))
+        return out
+
     def _from_height_map(self, rig: StereoRig, grads: dict[str, Gradients],
                          found: list[tuple[Pair, BookDetection]], desk_plane: NDArray[np.float64],
                          texture: dict[str, NDArray[np.float32]],
-                         ideal: dict[str, NDArray[np.uint8]],
+                         maps: list[tuple[HeightMap, NDArray[np.float64], HeightMapConfig, int]],
                          ) -> list[tuple[Pair, BookDetection]]:
         """Books where no book is yet, from the covers that stand out of the desk in a
         height map of the workspace (:mod:`rovis.heightmap`).
@@ -924,16 +1003,10 @@ class Detector:
         cfg = self.cfg
         overlap = cfg.stereo.transfer_max_overlap
         Q = {"left": rig.Q_L, "right": rig.Q_R}
-        hm = height_map(texture["left"], texture["right"], rig.Q_L, rig.Q_R, desk_plane,
-                        box=grads["left"].box, cfg=cfg.heightmap)
         side_range = (0.8 * cfg.min_cover_side, cfg.max_cover_side)
-        rects = raised_covers(hm, rig.Q_L, desk_plane, side_range=side_range, cfg=cfg.heightmap)
-        if cfg.heightmap.smooth:  # then the covers without fine print
-            smooth, Q_half, half = smooth_height_map(ideal["left"], ideal["right"], rig.Q_L,
-                                                     rig.Q_R, desk_plane,
-                                                     box=grads["left"].box, cfg=cfg.heightmap)
-            rects += raised_covers(smooth, Q_half, desk_plane, side_range=side_range, cfg=half,
-                                   erode_px=cfg.heightmap.smooth_erode_px)
+        rects = [rect for hm, Q_map, map_cfg, erode in maps  # the fine map's first
+                 for rect in raised_covers(hm, Q_map, desk_plane, side_range=side_range,
+                                           cfg=map_cfg, erode_px=erode)]
         taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
         out: list[tuple[Pair, BookDetection]] = []
         for P, height, fill in rects:

@@ -1,0 +1,188 @@
+"""Cover trim by the height map: a cover that takes in a neighbour, cut back to its own height.
+
+Beyond the paper. A quad whose sides all sit on strong edges can still span two books: a
+book lying on another with their sides in line, or two books side by side whose outer
+sides meet at the quad's corners. Every side passes the edge tests of :mod:`rovis.extent`,
+and the pose is that of a flat rectangle, centimetres too long. The height map
+(:mod:`rovis.heightmap`) tells: across the cover, strip by strip, the surface is at the
+cover's height over the book itself and at another height over the part that is not.
+
+:func:`height_profile` reads the maps along one axis of the cover; :func:`trim_side` finds
+the longest run of strips at the cover's height and, where the cover goes on beyond it
+at another height for long enough, cuts it there. The pipeline then moves the cut side
+onto the edge both images show (:func:`rovis.heightmap.snap_sides`, that side only).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rovis import geometry
+from rovis.heightmap import HeightMap
+
+
+@dataclass(frozen=True)
+class TrimConfig:
+    """Settings of the trim (metres unless noted).
+
+    ``enabled`` turns it on (it needs the height map). The cover is read in strips
+    ``strip`` wide across each axis, ``samples`` points per strip over ``span`` of the
+    other axis; a strip's height is the median of the fine map's values where it has at
+    least ``min_samples``, else of the smooth map's. A strip is at the cover's height
+    within ``tolerance`` (or ``tolerance_ratio`` of that height, if larger), elsewhere at
+    another height. The cover is cut where, beyond its longest run of strips at its height
+    (gaps of unknown strips up to ``max_gap`` allowed), at least ``min_cut`` of it goes
+    on, with at least ``min_other`` of those strips at another height; the part kept must
+    be ``min_keep`` long. The cut side is moved onto the edge both images show within
+    ``snap_reach`` outward and ``snap_inward`` inward, and kept only where it is one, or,
+    with no edge there, where the step scores ``min_score_unseen`` or more
+    (:func:`trim_side`; above 1: never).
+    """
+
+    enabled: bool = True
+    strip: float = 0.005
+    samples: int = 20
+    span: float = 0.8
+    min_samples: int = 5
+    tolerance: float = 0.006
+    tolerance_ratio: float = 0.25
+    max_gap: float = 0.015
+    min_cut: float = 0.045
+    min_other: float = 0.6
+    min_keep: float = 0.07
+    snap_reach: float = 0.01
+    snap_inward: float = 0.02
+    min_score_unseen: float = 0.9
+
+    def __post_init__(self) -> None:
+        problems = [name for name, ok in (
+            ("strip", self.strip > 0), ("samples", self.samples >= 1),
+            ("span", 0 < self.span <= 1), ("min_samples", 1 <= self.min_samples <= self.samples),
+            ("tolerance", self.tolerance >= 0 and self.tolerance_ratio >= 0),
+            ("max_gap", self.max_gap >= 0), ("min_cut", self.min_cut > 0),
+            ("min_other", 0 <= self.min_other <= 1), ("min_keep", self.min_keep > 0),
+            ("snap_reach", self.snap_reach >= 0 and self.snap_inward >= 0)) if not ok]
+        if problems:
+            raise ValueError(f"trim: bad {', '.join(problems)} (strip, min_cut and min_keep "
+                             "positive; span in (0, 1]; min_other in [0, 1]; min_samples "
+                             f"from 1 to samples; the rest >= 0), got {self}")
+
+
+def height_profile(P: NDArray[np.float64], axis: int,
+                   maps: list[tuple[HeightMap, NDArray[np.float64]]],
+                   cfg: TrimConfig = TrimConfig()) -> NDArray[np.float64]:
+    """Surface height (metres above the desk, NaN: unknown) in strips across a cover.
+
+    Parameters
+    ----------
+    P : ndarray, shape (4, 3)
+        The cover's corners (world, metres), a rectangle in order around it.
+    axis : {0, 1}
+        0: strips along side 0's direction, from corner 0 (or 3) towards corner 1 (2);
+        1: along side 1's, from corner 1 (0) towards corner 2 (3).
+    maps : list of (HeightMap, ndarray (3, 4))
+        Height maps with the projection of the image each is over, finest first.
+
+    Returns
+    -------
+    ndarray, shape (S,)
+        One height per ``cfg.strip`` of the cover's extent along ``axis``.
+    """
+    origin = P[0] if axis == 0 else P[1]
+    along = (P[1] - P[0]) if axis == 0 else (P[2] - P[1])
+    across = (P[3] - P[0]) if axis == 0 else (P[0] - P[1])
+    length = float(np.linalg.norm(along))
+    n_strips = max(1, int(round(length / cfg.strip)))
+    t = (np.arange(n_strips) + 0.5) / n_strips  # strip centres, share of the length
+    g = 0.5 + cfg.span * (np.linspace(0.0, 1.0, cfg.samples) - 0.5)  # share of the width
+    pts = origin + t[:, None, None] * along + g[None, :, None] * across  # (S, G, 3)
+    out = np.full(n_strips, np.nan)
+    for hm, Q in maps:
+        uv = np.round(geometry.project(Q, pts.reshape(-1, 3))).astype(int)
+        h, w = hm.height.shape
+        inside = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+        z = np.full(len(uv), np.nan)
+        z[inside] = hm.height[uv[inside, 1], uv[inside, 0]]
+        z = z.reshape(n_strips, cfg.samples)
+        enough = np.isnan(out) & (np.count_nonzero(np.isfinite(z), axis=1) >= cfg.min_samples)
+        if enough.any():
+            out[enough] = np.nanmedian(z[enough], axis=1)
+    return out
+
+
+def trim_side(profile: NDArray[np.float64], height: float,
+              cfg: TrimConfig = TrimConfig()) -> tuple[int, float, float] | None:
+    """Where to cut a cover whose height profile shows another surface at one end.
+
+    Parameters
+    ----------
+    profile : ndarray, shape (S,)
+        :func:`height_profile` (metres; NaN unknown).
+    height : float
+        The cover's height above the desk (metres).
+
+    Returns
+    -------
+    (end, cut, score) or None
+        ``end`` 0: the part from the profile's start is cut away, 1: from its end; ``cut``:
+        how much (metres); ``score``: how clear the step is (the share of strips at the
+        cover's height in the part kept times the share at another height in the part cut,
+        0 to 1). None where the cover is at its height throughout (or the evidence is too
+        thin).
+    """
+    tol = max(cfg.tolerance, cfg.tolerance_ratio * height)
+    known = np.isfinite(profile)
+    same = known & (np.abs(profile - height) <= tol)
+    # only a lower surface tells the cover is not there: a higher one is another book
+    # lying on it, with the cover going on beneath
+    other = known & (profile < height - tol)
+    n = len(profile)
+    # the longest run of strips at the cover's height, bridging short unknown gaps
+    max_gap = int(round(cfg.max_gap / cfg.strip))
+    best, start = (0, 0), None
+    gap = 0
+    for k in range(n + 1):
+        if k < n and same[k]:
+            start = k if start is None else start
+            gap = 0
+            end = k + 1
+            if end - start > best[1] - best[0]:
+                best = (start, end)
+        elif k < n and not other[k] and start is not None and gap < max_gap:
+            gap += 1
+        else:
+            start, gap = None, 0
+    lo, hi = best
+    if (hi - lo) * cfg.strip < cfg.min_keep:
+        return None
+    cuts = []
+    for end, part in ((0, slice(0, lo)), (1, slice(hi, n))):
+        k = np.arange(n)[part]
+        if len(k) * cfg.strip < cfg.min_cut or not known[k].any():
+            continue
+        off = height - profile[k[known[k]]]
+        share = np.count_nonzero(other[k]) / len(k)
+        if share >= cfg.min_other and np.median(off) > tol:
+            kept = np.count_nonzero(same[lo:hi]) / (hi - lo)
+            cuts.append((share * kept, end, len(k) * cfg.strip))
+    if not cuts:
+        return None
+    score, end, cut = max(cuts)  # the clearer, if both ends look cut
+    return end, cut, score
+
+
+def cut_cover(P: NDArray[np.float64], axis: int, end: int,
+              cut: float) -> tuple[NDArray[np.float64], int]:
+    """The rectangle ``P`` (4, 3) with ``cut`` metres taken off one end along ``axis``
+    (:func:`trim_side`'s ``end``), and the side that moved (side s: corner s to s + 1)."""
+    P = P.copy()
+    a, b = (0, 1) if axis == 0 else (1, 2)
+    u = (P[b] - P[a]) / np.linalg.norm(P[b] - P[a])
+    # axis 0 runs from side 3 to side 1, axis 1 from side 0 to side 2
+    side = (3, 1)[end] if axis == 0 else (0, 2)[end]
+    for k in (side, (side + 1) % 4):
+        P[k] = P[k] + (cut if end == 0 else -cut) * u
+    return P, side

@@ -1,0 +1,139 @@
+"""Cutting a cover back where the height map leaves its height (rovis.trim) and the
+pipeline step that does it (Detector._trimmed)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from rovis import geometry
+from rovis.heightmap import HeightMap
+from rovis.pipeline import Detector, Pair
+from rovis.synth import render, sample_scene
+from rovis.synth.scene import Book
+from rovis.synth.textures import CoverSpec
+from rovis.trim import TrimConfig, cut_cover, height_profile, trim_side
+
+CFG = TrimConfig()
+H = 0.03  # metres, the cover's height in the profile tests
+
+
+def _profile(*parts: tuple[float, int]) -> np.ndarray:
+    """A height profile from (height, strips) runs (NaN: unknown)."""
+    return np.concatenate([np.full(n, h) for h, n in parts])
+
+
+def test_a_cover_at_its_height_throughout_is_not_cut():
+    assert trim_side(_profile((H, 40)), H) is None
+    assert trim_side(_profile((H + 0.003, 20), (np.nan, 2), (H - 0.004, 18)), H) is None
+
+
+def test_a_lower_surface_at_one_end_is_cut_off():
+    # 150 mm of cover, then 60 mm of desk (strips of 5 mm)
+    end, cut, score = trim_side(_profile((H, 30), (0.0, 12)), H)
+    assert (end, score) == (1, 1.0)
+    assert cut == pytest.approx(0.06)
+    # the same at the start, with a lower book (12 mm) and a strip of it unknown
+    end, cut, _ = trim_side(_profile((0.012, 5), (np.nan, 1), (0.012, 4), (H, 30)), H)
+    assert end == 0 and cut == pytest.approx(0.05)
+
+
+def test_a_higher_surface_is_a_book_on_the_cover_and_not_cut():
+    # the cover goes on beneath a book lying on it
+    assert trim_side(_profile((0.08, 12), (H, 30)), H) is None
+
+
+def test_a_short_low_fringe_is_not_cut():
+    # the map reads the desk a centimetre or two into a cover at its edge (its windows)
+    assert trim_side(_profile((H, 30), (0.0, 4)), H) is None
+    # and a thin book is not cut where its profile is within the tolerance of its height
+    thin = 0.012
+    assert trim_side(_profile((thin, 30), (thin - 0.005, 12)), thin) is None
+
+
+def test_too_little_cover_left_is_not_cut():
+    assert trim_side(_profile((H, 10), (0.0, 30)), H) is None
+
+
+def test_cut_cover_moves_one_side_by_the_cut():
+    P = np.array([[0.0, 0.0, H], [0.2, 0.0, H], [0.2, 0.1, H], [0.0, 0.1, H]])
+    for axis, end, side in ((0, 0, 3), (0, 1, 1), (1, 0, 0), (1, 1, 2)):
+        Q, moved = cut_cover(P, axis, end, 0.03)
+        assert moved == side
+        still = [k for k in range(4) if k not in (side, (side + 1) % 4)]
+        np.testing.assert_array_equal(Q[still], P[still])
+        assert np.linalg.norm(Q[side] - P[side]) == pytest.approx(0.03)
+        size = (np.linalg.norm(Q[1] - Q[0]), np.linalg.norm(Q[2] - Q[1]))
+        assert size[axis] == pytest.approx((0.2, 0.1)[axis] - 0.03)
+
+
+def test_height_profile_reads_the_map_strip_by_strip():
+    # a camera 1 m above the desk looking down, 1 px per mm at the desk
+    Q = np.array([[1000.0, 0.0, 0.0, 0.0], [0.0, 1000.0, 0.0, 0.0], [0.0, 0.0, -1.0, 1.0]])
+    height = np.full((400, 400), np.nan, np.float32)
+    height[:, :150] = 0.02  # a cover up to x = 0.15 m (at this scale), the desk beyond
+    height[:, 150:] = 0.0
+    hm = HeightMap(height, np.array([0.0, 0.02]), (0, 0, 400, 400))
+    P = np.array([[0.05, 0.05, 0.0], [0.25, 0.05, 0.0], [0.25, 0.15, 0.0], [0.05, 0.15, 0.0]])
+    prof = height_profile(P, 0, [(hm, Q)])
+    assert len(prof) == 40  # 200 mm in 5 mm strips
+    np.testing.assert_allclose(prof[:20], 0.02)
+    np.testing.assert_allclose(prof[20:], 0.0)
+    # across the other axis every strip holds both parts alike
+    across = height_profile(P, 1, [(hm, Q)])
+    assert len(across) == 20 and np.ptp(across) == 0.0
+    # a map with nothing there reads unknown
+    empty = HeightMap(np.full((400, 400), np.nan, np.float32), hm.heights, hm.box)
+    assert np.isnan(height_profile(P, 0, [(empty, Q)])).all()
+    # a coarser map fills in where the first has too few values
+    assert height_profile(P, 0, [(empty, Q), (hm, Q)])[0] == pytest.approx(0.02)
+
+
+@pytest.fixture(scope="module")
+def book_scene():
+    """A photo cover, 20 × 14 × 3 cm, alone on the desk at 300 lx."""
+    sc = sample_scene(5, lux=300.0, n_books=0)
+    b = Book(center=(0.42, 0.34, 0.03), yaw_deg=20.0, size=(0.20, 0.14, 0.03),
+             cover=CoverSpec(kind="photo", albedo=0.45, seed=4))
+    sc = replace(sc, books=(b,), papers=(), mugs=(), pens=(), cables=())
+    return sc, render(sc, 5)
+
+
+def test_a_cover_reaching_over_the_desk_is_cut_back_to_its_end(book_scene):
+    sc, r = book_scene
+    det = Detector(sc.rig)
+    res = det.detect(r.left, r.right)
+    f = det._prepare(r.left, r.right)
+    texture = det._texture(f.ideal)
+    maps = det._height_maps(f.rig, f.grads, f.desk_plane, texture, f.ideal)
+    truth = np.asarray(sc.books[0].corners)[:4]
+    # the cover with one end 6 cm out over the desk, in both images
+    a = 0 if np.linalg.norm(truth[1] - truth[0]) > np.linalg.norm(truth[2] - truth[1]) else 1
+    u = (truth[a + 1] - truth[a]) / np.linalg.norm(truth[a + 1] - truth[a])
+    long = truth.copy()
+    long[[a + 1, a + 2]] += 0.06 * u
+    pair = Pair(geometry.project(f.rig.Q_L, long), geometry.project(f.rig.Q_R, long), 1.0, 0.0)
+    pair, book, why = det._reconstruct_or_why(f.rig, pair, f.desk_plane, texture)
+    assert book is not None, why
+    assert max(book.pose.size[:2]) == pytest.approx(0.26, abs=0.005)
+    out = det._trimmed(f.rig, res.segmentation, f.grads, [(pair, book)], f.desk_plane,
+                       texture, [(hm, Q) for hm, Q, _, _ in maps])
+    (_, trimmed), = out
+    assert max(trimmed.pose.size[:2]) == pytest.approx(0.20, abs=0.004)  # m
+    assert np.linalg.norm(trimmed.pose.center[:2] - np.asarray(sc.books[0].center)[:2]) < 0.004
+    # and the cover as it is stays so
+    pair, book, _ = det._reconstruct_or_why(
+        f.rig, Pair(geometry.project(f.rig.Q_L, truth), geometry.project(f.rig.Q_R, truth),
+                    1.0, 0.0), f.desk_plane, texture)
+    (_, same), = det._trimmed(f.rig, res.segmentation, f.grads, [(pair, book)], f.desk_plane,
+                              texture, [(hm, Q) for hm, Q, _, _ in maps])
+    assert same is book
+
+
+def test_bad_settings_are_refused():
+    with pytest.raises(ValueError, match="strip"):
+        TrimConfig(strip=0.0)
+    with pytest.raises(ValueError, match="min_other"):
+        TrimConfig(min_other=1.5)
