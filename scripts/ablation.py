@@ -38,6 +38,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the extent step", ["extent.grow=false", "extent.shrink=false"]),
     ("the split of touching books", ["split.enabled=false"]),
     ("the trim by the height map", ["trim.enabled=false"]),
+    ("the height check by the height map", ["trim.map_height=false"]),
 ]
 
 

@@ -10,11 +10,11 @@ import pytest
 
 from rovis import geometry
 from rovis.heightmap import HeightMap
-from rovis.pipeline import Detector, Pair
+from rovis.pipeline import DetectConfig, Detector, Pair, with_settings
 from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
-from rovis.trim import TrimConfig, cut_cover, height_profile, trim_side
+from rovis.trim import TrimConfig, cut_cover, height_profile, map_height, trim_side
 
 CFG = TrimConfig()
 H = 0.03  # metres, the cover's height in the profile tests
@@ -89,6 +89,73 @@ def test_height_profile_reads_the_map_strip_by_strip():
     assert np.isnan(height_profile(P, 0, [(empty, Q)])).all()
     # a coarser map fills in where the first has too few values
     assert height_profile(P, 0, [(empty, Q), (hm, Q)])[0] == pytest.approx(0.02)
+
+
+def test_map_height_reads_the_middle_of_the_cover():
+    Q = np.array([[1000.0, 0.0, 0.0, 0.0], [0.0, 1000.0, 0.0, 0.0], [0.0, 0.0, -1.0, 1.0]])
+    P = np.array([[0.05, 0.05, 0.0], [0.25, 0.05, 0.0], [0.25, 0.15, 0.0], [0.05, 0.15, 0.0]])
+    height = np.full((400, 400), 0.021, np.float32)
+    height[:60, :] = 0.0  # the desk along one side: outside the middle read
+    hm = HeightMap(height, np.array([0.0, 0.021]), (0, 0, 400, 400))
+    assert map_height(P, [(hm, Q)]) == pytest.approx(0.021)
+    # steps of 3 mm: the values near the median averaged
+    steps = np.where(np.arange(400)[:, None] % 2 == 0, 0.021, 0.024) * np.ones((1, 400))
+    steps = steps.astype(np.float32)  # rows of one and the other
+    assert map_height(P, [(HeightMap(steps, hm.heights, hm.box), Q)]) == pytest.approx(0.0225,
+                                                                                       abs=5e-4)
+    # values at random heights (a dark cover's noise matched): no height
+    rng = np.random.default_rng(0)
+    noise = rng.uniform(0.0, 0.07, (400, 400)).astype(np.float32)
+    assert map_height(P, [(HeightMap(noise, hm.heights, hm.box), Q)]) is None
+    # too few values in the first map: the next one reads it
+    sparse = np.full((400, 400), np.nan, np.float32)
+    sparse[::7, ::7] = 0.05
+    assert map_height(P, [(HeightMap(sparse, hm.heights, hm.box), Q), (hm, Q)]) == \
+        pytest.approx(0.021)
+    assert map_height(P, [(HeightMap(sparse, hm.heights, hm.box), Q)]) is None
+
+
+@pytest.fixture(scope="module")
+def desk_book():
+    """A cover of the desk's own tone, 22 × 15 × 3 cm, alone on the desk at 300 lx."""
+    sc = sample_scene(13, lux=300.0, n_books=0)
+    b = Book(center=(0.42, 0.30, 0.03), yaw_deg=20.0, size=(0.22, 0.15, 0.03),
+             cover=CoverSpec(kind="desk", albedo=0.42, seed=5))
+    sc = replace(sc, books=(b,), papers=(), mugs=(), pens=(), cables=())
+    return sc, render(sc, 13)
+
+
+def test_a_plain_cover_at_the_wrong_height_is_moved_to_the_maps(desk_book):
+    sc, r = desk_book
+    det = Detector(sc.rig)
+    res = det.detect(r.left, r.right)
+    f = det._prepare(r.left, r.right)
+    texture = det._texture(f.ideal)
+    maps = [(hm, Q) for hm, Q, _, _ in det._height_maps(f.rig, f.grads, f.desk_plane, texture,
+                                                         f.ideal)]
+    truth = np.asarray(sc.books[0].corners)[:4]
+    assert map_height(truth, maps) == pytest.approx(0.03, abs=0.003)
+    # the cover 14 mm too high (a side on the page block's foot in one image does that)
+    high = truth + [0.0, 0.0, 0.014]
+    # (the print's height test would drop it here: the cover's mottle shows it to the sweep)
+    lax = Detector(sc.rig, with_settings(DetectConfig(), ["sweep.check=false"]))
+    pair, book, why = lax._reconstruct_or_why(
+        f.rig, Pair(geometry.project(f.rig.Q_L, high), geometry.project(f.rig.Q_R, high),
+                    1.0, 0.0), f.desk_plane, texture)
+    assert book is not None, why
+    assert book.pose.size[2] == pytest.approx(0.044, abs=0.002)
+    (_, moved), = det._at_map_height(f.rig, res.segmentation, f.grads, [(pair, book)],
+                                     f.desk_plane, texture, maps)
+    assert moved.pose.size[2] == pytest.approx(0.03, abs=0.003)  # m
+    assert np.linalg.norm(moved.pose.center[:2] - np.asarray(sc.books[0].center)[:2]) < 0.004
+    assert sorted(moved.pose.size[:2]) == pytest.approx([0.15, 0.22], abs=0.004)
+    # the cover where it is stays so
+    pair, book, _ = det._reconstruct_or_why(
+        f.rig, Pair(geometry.project(f.rig.Q_L, truth), geometry.project(f.rig.Q_R, truth),
+                    1.0, 0.0), f.desk_plane, texture)
+    (_, same), = det._at_map_height(f.rig, res.segmentation, f.grads, [(pair, book)],
+                                    f.desk_plane, texture, maps)
+    assert same is book
 
 
 @pytest.fixture(scope="module")

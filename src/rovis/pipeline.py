@@ -43,7 +43,7 @@ from rovis.segment.boundary import Fit, refine_quad, refine_quad_both, refine_si
 from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
 from rovis.split import SplitConfig, split_union
 from rovis.track import TrackConfig, follow
-from rovis.trim import TrimConfig, cut_cover, height_profile, trim_side
+from rovis.trim import TrimConfig, cut_cover, height_profile, map_height, trim_side
 from rovis.stereo import (Match, StereoConfig, find_in_other_view, flat_rectangle, match_quads,
                           pool_pairs)
 from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pass, on_plane,
@@ -415,6 +415,11 @@ class Detector:
         if self.cfg.split.enabled and desk_plane is not None:
             found = self._split_unions(rig, segs, grads, found, desk_plane, texture)
             lap("split")
+        # beyond the paper: a plain cover at the wrong height, moved to the height map's
+        if self.cfg.trim.map_height and maps:
+            found = self._at_map_height(rig, segs, grads, found, desk_plane, texture,
+                                        [(hm, Q) for hm, Q, _, _ in maps])
+            lap("trim")
         # beyond the paper: a cover that spans a neighbour at another height, cut back
         if self.cfg.trim.enabled and maps:
             found = self._trimmed(rig, segs, grads, found, desk_plane, texture,
@@ -935,6 +940,45 @@ class Detector:
                                                      box=grads["left"].box, cfg=cfg)
             maps.append((smooth, Q_half, half, cfg.smooth_erode_px))
         return maps
+
+    def _at_map_height(self, rig: StereoRig, segs: dict[str, Segmentation],
+                       grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
+                       desk_plane: NDArray[np.float64],
+                       texture: dict[str, NDArray[np.float32]] | None,
+                       maps: list[tuple[HeightMap, NDArray[np.float64]]],
+                       ) -> list[tuple[Pair, BookDetection]]:
+        """Each book whose height the maps read clearly otherwise over its cover
+        (:func:`rovis.trim.map_height`), laid at the maps' height (both images' quads on
+        that plane, their mean; or, where they disagree, the one whose sides are edges in
+        both images), its sides moved onto the edges both images show there."""
+        cfg = self.cfg.trim
+        Q = {"left": rig.Q_L, "right": rig.Q_R}
+        strength = self._edge_strength(segs)
+        out = []
+        for pair, book in found:
+            P = geometry.triangulate(rig.Q_L, rig.Q_R, pair.left, pair.right)
+            height = float(np.mean(geometry.plane_distance(desk_plane, P)))
+            h = map_height(P, maps, cfg) if book.source != "height map" else None
+            if h is not None and abs(h - height) >= cfg.min_height_move:
+                trials = []
+                laid = self._laid_at(rig, pair.left, pair.right, desk_plane, h)
+                candidates = ([laid] if laid is not None else
+                              [on_plane(rig.Q_L, pair.left, desk_plane, h),
+                               on_plane(rig.Q_R, pair.right, desk_plane, h)])
+                for C in candidates:
+                    C = snap_sides(C, Q, grads, reach=cfg.snap_reach, inward=cfg.snap_reach)
+                    edges = sum(_side_scores(C[None], s, (s + 1) % 4, Q, grads, strength,
+                                             self.cfg.extent)[0][0] for s in range(4))
+                    trials.append((edges, C))
+                edges, C = max(trials, key=lambda t: t[0])
+                if edges >= 3:
+                    moved, fitted, _ = self._reconstruct_or_why(
+                        rig, replace(pair, left=geometry.project(rig.Q_L, C),
+                                     right=geometry.project(rig.Q_R, C)), desk_plane, texture)
+                    if fitted is not None:
+                        pair, book = moved, fitted
+            out.append((pair, book))
+        return out
 
     def _trimmed(self, rig: StereoRig, segs: dict[str, Segmentation],
                  grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],

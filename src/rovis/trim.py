@@ -11,6 +11,10 @@ cover's height over the book itself and at another height over the part that is 
 the longest run of strips at the cover's height and, where the cover goes on beyond it
 at another height for long enough, cuts it there. The pipeline then moves the cut side
 onto the edge both images show (:func:`rovis.heightmap.snap_sides`, that side only).
+
+Before that, :func:`map_height` reads the maps over the cover's middle: a plain cover
+whose sides misled stereo by a centimetre or more in height is laid at the maps' height
+(the pipeline's ``Detector._at_map_height``).
 """
 
 from __future__ import annotations
@@ -26,20 +30,24 @@ from rovis.heightmap import HeightMap
 
 @dataclass(frozen=True)
 class TrimConfig:
-    """Settings of the trim (metres unless noted).
+    """Settings of the trim and the height check (metres unless noted).
 
-    ``enabled`` turns it on (it needs the height map). The cover is read in strips
-    ``strip`` wide across each axis, ``samples`` points per strip over ``span`` of the
-    other axis; a strip's height is the median of the fine map's values where it has at
-    least ``min_samples``, else of the smooth map's. A strip is at the cover's height
-    within ``tolerance`` (or ``tolerance_ratio`` of that height, if larger), elsewhere at
-    another height. The cover is cut where, beyond its longest run of strips at its height
-    (gaps of unknown strips up to ``max_gap`` allowed), at least ``min_cut`` of it goes
-    on, with at least ``min_other`` of those strips at another height; the part kept must
-    be ``min_keep`` long. The cut side is moved onto the edge both images show within
-    ``snap_reach`` outward and ``snap_inward`` inward, and kept only where it is one, or,
-    with no edge there, where the step scores ``min_score_unseen`` or more
-    (:func:`trim_side`; above 1: never).
+    ``enabled`` turns the trim on, ``map_height`` the height check (both need the height
+    map). The check: a book ``min_height_move`` or more from :func:`map_height`'s height
+    is moved there; the map must have values at ``min_height_share`` of the points read,
+    and ``min_height_agree`` of those within ``tolerance`` of their median.
+
+    The trim: the cover is read in strips ``strip`` wide across each axis, ``samples``
+    points per strip over ``span`` of the other axis; a strip's height is the median of
+    the fine map's values where it has at least ``min_samples``, else of the smooth map's.
+    A strip is at the cover's height within ``tolerance`` (or ``tolerance_ratio`` of that
+    height, if larger), and lower below that. The cover is cut where, beyond its longest
+    run of strips at its height (unknown or higher strips up to ``max_gap`` bridged), at
+    least ``min_cut`` of it goes on, with at least ``min_other`` of those strips lower;
+    the part kept must be ``min_keep`` long. The cut side is moved onto the edge both
+    images show within ``snap_reach`` outward and ``snap_inward`` inward, and kept only
+    where it is one, or, with no edge there, where the step scores ``min_score_unseen``
+    or more (:func:`trim_side`; above 1: never).
     """
 
     enabled: bool = True
@@ -56,6 +64,10 @@ class TrimConfig:
     snap_reach: float = 0.01
     snap_inward: float = 0.02
     min_score_unseen: float = 0.9
+    map_height: bool = True
+    min_height_move: float = 0.008
+    min_height_share: float = 0.4
+    min_height_agree: float = 0.5
 
     def __post_init__(self) -> None:
         problems = [name for name, ok in (
@@ -64,11 +76,15 @@ class TrimConfig:
             ("tolerance", self.tolerance >= 0 and self.tolerance_ratio >= 0),
             ("max_gap", self.max_gap >= 0), ("min_cut", self.min_cut > 0),
             ("min_other", 0 <= self.min_other <= 1), ("min_keep", self.min_keep > 0),
-            ("snap_reach", self.snap_reach >= 0 and self.snap_inward >= 0)) if not ok]
+            ("snap_reach", self.snap_reach >= 0 and self.snap_inward >= 0),
+            ("min_height_move", self.min_height_move >= 0),
+            ("min_height_share", 0 <= self.min_height_share <= 1
+             and 0 <= self.min_height_agree <= 1)) if not ok]
         if problems:
             raise ValueError(f"trim: bad {', '.join(problems)} (strip, min_cut and min_keep "
-                             "positive; span in (0, 1]; min_other in [0, 1]; min_samples "
-                             f"from 1 to samples; the rest >= 0), got {self}")
+                             "positive; span in (0, 1]; min_other, min_height_share and "
+                             "min_height_agree in [0, 1]; min_samples from 1 to samples; the "
+                             f"rest >= 0), got {self}")
 
 
 def height_profile(P: NDArray[np.float64], axis: int,
@@ -111,6 +127,35 @@ def height_profile(P: NDArray[np.float64], axis: int,
         if enough.any():
             out[enough] = np.nanmedian(z[enough], axis=1)
     return out
+
+
+def map_height(P: NDArray[np.float64], maps: list[tuple[HeightMap, NDArray[np.float64]]],
+               cfg: TrimConfig = TrimConfig()) -> float | None:
+    """The height the maps read over a cover's middle (metres above the desk), or None.
+
+    A 15 × 15 grid over the middle 70 % of the cover ``P`` (4, 3) is read in each map,
+    finest first; the first map with values at ``min_height_share`` of the points gives
+    the median, refined to the mean of its values within one ``tolerance`` of it (the
+    maps' heights come in steps of a few millimetres); where fewer than
+    ``min_height_agree`` of its values lie that near, the map has no height for it.
+    """
+    g = np.linspace(0.15, 0.85, 15)
+    s, r = np.meshgrid(g, g)
+    pts = P[0] + s.reshape(-1, 1) * (P[1] - P[0]) + r.reshape(-1, 1) * (P[3] - P[0])
+    for hm, Q in maps:
+        uv = np.round(geometry.project(Q, pts)).astype(int)
+        h, w = hm.height.shape
+        inside = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+        z = hm.height[uv[inside, 1], uv[inside, 0]].astype(np.float64)
+        z = z[np.isfinite(z)]
+        if len(z) >= cfg.min_height_share * len(pts):
+            mid = float(np.median(z))
+            near = np.abs(z - mid) <= cfg.tolerance
+            # a dark cover's noise matches at random heights: most values must agree
+            if np.count_nonzero(near) < cfg.min_height_agree * len(z):
+                return None
+            return float(np.mean(z[near]))
+    return None
 
 
 def trim_side(profile: NDArray[np.float64], height: float,
