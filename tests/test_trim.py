@@ -1,5 +1,6 @@
-"""Cutting a cover back where the height map leaves its height (rovis.trim) and the
-pipeline step that does it (Detector._trimmed)."""
+"""The height map's checks of each book (rovis.trim): its height over the cover
+(map_height, Detector._at_map_height) and the cut where the map leaves it (trim_side,
+cut_cover, Detector._trimmed)."""
 
 from __future__ import annotations
 
@@ -84,6 +85,11 @@ def test_height_profile_reads_the_map_strip_by_strip():
     # across the other axis every strip holds both parts alike
     across = height_profile(P, 1, [(hm, Q)])
     assert len(across) == 20 and np.ptp(across) == 0.0
+    # along it, from side 0 (y = 0.05) towards side 2 (y = 0.15)
+    rows = np.where(np.arange(400)[:, None] < 120, 0.02, 0.0) * np.ones((1, 400))
+    along_y = height_profile(P, 1, [(HeightMap(rows.astype(np.float32), hm.heights, hm.box), Q)])
+    np.testing.assert_allclose(along_y[:14], 0.02)  # y < 0.12 m
+    np.testing.assert_allclose(along_y[14:], 0.0)
     # a map with nothing there reads unknown
     empty = HeightMap(np.full((400, 400), np.nan, np.float32), hm.heights, hm.box)
     assert np.isnan(height_profile(P, 0, [(empty, Q)])).all()
@@ -95,7 +101,8 @@ def test_map_height_reads_the_middle_of_the_cover():
     Q = np.array([[1000.0, 0.0, 0.0, 0.0], [0.0, 1000.0, 0.0, 0.0], [0.0, 0.0, -1.0, 1.0]])
     P = np.array([[0.05, 0.05, 0.0], [0.25, 0.05, 0.0], [0.25, 0.15, 0.0], [0.05, 0.15, 0.0]])
     height = np.full((400, 400), 0.021, np.float32)
-    height[:60, :] = 0.0  # the desk along one side: outside the middle read
+    height[:64, :] = 0.026  # a border strip (y < 64 mm): outside the middle read, which
+    # would pull the mean up if it were read
     hm = HeightMap(height, np.array([0.0, 0.021]), (0, 0, 400, 400))
     assert map_height(P, [(hm, Q)]) == pytest.approx(0.021)
     # steps of 3 mm: the values near the median averaged
@@ -113,6 +120,21 @@ def test_map_height_reads_the_middle_of_the_cover():
     assert map_height(P, [(HeightMap(sparse, hm.heights, hm.box), Q), (hm, Q)]) == \
         pytest.approx(0.021)
     assert map_height(P, [(HeightMap(sparse, hm.heights, hm.box), Q)]) is None
+
+
+def test_a_lower_start_is_cut_from_the_start_side():
+    # profile, cut and cover agree on which end is which: the desk under the first 60 mm
+    # along side 1's direction (from side 0) takes side 0 in by 60 mm
+    Q = np.array([[1000.0, 0.0, 0.0, 0.0], [0.0, 1000.0, 0.0, 0.0], [0.0, 0.0, -1.0, 1.0]])
+    P = np.array([[0.05, 0.05, H], [0.25, 0.05, H], [0.25, 0.20, H], [0.05, 0.20, H]])
+    height = np.full((400, 400), H, np.float32)
+    height[: int(1000 * 0.11 / (1 - H))] = 0.0  # y < 0.11 m at the cover's height
+    hm = HeightMap(height, np.array([0.0, H]), (0, 0, 400, 400))
+    end, cut, _ = trim_side(height_profile(P, 1, [(hm, Q)]), H)
+    Q2, side = cut_cover(P, 1, end, cut)
+    assert (end, side) == (0, 0)
+    assert cut == pytest.approx(0.06, abs=0.0051)
+    assert Q2[0, 1] == pytest.approx(0.05 + cut) and Q2[1, 1] == pytest.approx(0.05 + cut)
 
 
 @pytest.fixture(scope="module")

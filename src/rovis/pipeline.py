@@ -112,9 +112,7 @@ class DetectConfig:
     segment, stereo, extent, complete, facing, sweep, side_height
         :class:`SegmentConfig`, :class:`StereoConfig`, :class:`ExtentConfig`,
         :class:`CompleteConfig`, :class:`FacingConfig`, :class:`SweepConfig`,
-        :class:`SideHeightConfig`. ``trim`` (:class:`rovis.trim.TrimConfig`): a cover
-        that takes in a neighbour at another height, cut back where the height map leaves
-        its height (beyond the paper; needs the height map). ``side_height``: each cover moved to the height its
+        :class:`SideHeightConfig`. ``side_height``: each cover moved to the height its
         sides' edges agree on, before the extent step
         (:func:`rovis.extent.height_from_sides`; beyond the paper; needs the desk plane).
         ``extent``: moving each cover's sides to its edges in both images
@@ -128,6 +126,12 @@ class DetectConfig:
         cover's height tested against its print, and a printed cover found in one image
         only placed in the other by its print (:mod:`rovis.sweep`; beyond the paper; needs
         the desk plane; the placing also ``stereo.transfer``).
+    heightmap, trim
+        :class:`rovis.heightmap.HeightMapConfig`, :class:`rovis.trim.TrimConfig`:
+        books that stand out of the desk in a height map; with the maps, a plain cover
+        at the wrong height moved to theirs, and a cover that takes in a lower neighbour
+        cut back where the maps leave its height (beyond the paper; need the desk plane;
+        switching the height map off switches these off too).
     """
 
     method: str = "closed"
@@ -416,12 +420,12 @@ class Detector:
             found = self._split_unions(rig, segs, grads, found, desk_plane, texture)
             lap("split")
         # beyond the paper: a plain cover at the wrong height, moved to the height map's
-        if self.cfg.trim.map_height and maps:
+        if self.cfg.trim.map_height and maps and desk_plane is not None:
             found = self._at_map_height(rig, segs, grads, found, desk_plane, texture,
                                         [(hm, Q) for hm, Q, _, _ in maps])
             lap("trim")
         # beyond the paper: a cover that spans a neighbour at another height, cut back
-        if self.cfg.trim.enabled and maps:
+        if self.cfg.trim.enabled and maps and desk_plane is not None:
             found = self._trimmed(rig, segs, grads, found, desk_plane, texture,
                                   [(hm, Q) for hm, Q, _, _ in maps])
             lap("trim")
@@ -966,6 +970,8 @@ class Detector:
                               [on_plane(rig.Q_L, pair.left, desk_plane, h),
                                on_plane(rig.Q_R, pair.right, desk_plane, h)])
                 for C in candidates:
+                    # ± snap_reach: the cover is moved whole, no side of it is known to be
+                    # short (the trim's snap_inward is for a cut, which lands past the edge)
                     C = snap_sides(C, Q, grads, reach=cfg.snap_reach, inward=cfg.snap_reach)
                     edges = sum(_side_scores(C[None], s, (s + 1) % 4, Q, grads, strength,
                                              self.cfg.extent)[0][0] for s in range(4))
@@ -988,7 +994,9 @@ class Detector:
                  ) -> list[tuple[Pair, BookDetection]]:
         """Each cover that goes on beyond its own height, cut there (:mod:`rovis.trim`),
         the cut side moved onto the edge both images show (:func:`snap_sides`), and put
-        through the pose checks again; a cover the maps found is left as it is."""
+        through the pose checks again; a cover the maps found is left as it is. A cut
+        cover is the rectangle laid flat at its corners' mean height, projected into both
+        images: its other sides keep their place in 3D, not each image's own fit."""
         cfg = self.cfg.trim
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
@@ -1003,8 +1011,14 @@ class Detector:
             P = P - np.outer((P - P.mean(axis=0)) @ up, up)  # onto the cover plane
             moved = False
             for _ in range(2):  # a cover over two others, one along each axis
-                cuts = sorted(((c[2], axis, c[0], c[1]) for axis in (0, 1) if (c := trim_side(
-                    height_profile(P, axis, maps, cfg), height, cfg)) is not None), reverse=True)
+                cuts = []
+                for axis in (0, 1):
+                    profile = height_profile(P, axis, maps, cfg)
+                    length = float(np.linalg.norm(P[axis + 1] - P[axis]))
+                    c = trim_side(profile, height, cfg, strip=length / len(profile))
+                    if c is not None:
+                        cuts.append((c[2], axis, c[0], c[1]))
+                cuts.sort(reverse=True)
                 for score, axis, end, amount in cuts:  # the clearest step that is an edge
                     cut, side = cut_cover(P, axis, end, amount)
                     snapped = snap_sides(cut, Q, grads, reach=cfg.snap_reach,
@@ -1025,7 +1039,8 @@ class Detector:
                 trial = replace(pair, left=geometry.project(rig.Q_L, P),
                                 right=geometry.project(rig.Q_R, P))
                 new_pair, new_book, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
-                if new_book is not None:
+                # (a cut narrower than a book would be dropped at the end, the cover with it)
+                if new_book is not None and min(new_book.pose.size[:2]) >= self.cfg.min_cover_side:
                     pair, book = new_pair, new_book
             out.append((pair, book))
         return out

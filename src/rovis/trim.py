@@ -35,19 +35,21 @@ class TrimConfig:
     ``enabled`` turns the trim on, ``map_height`` the height check (both need the height
     map). The check: a book ``min_height_move`` or more from :func:`map_height`'s height
     is moved there; the map must have values at ``min_height_share`` of the points read,
-    and ``min_height_agree`` of those within ``tolerance`` of their median.
+    and ``min_height_agree`` of those within ``tolerance`` of their median. Its sides are
+    then moved onto the edges both images show within ``snap_reach`` either way.
 
     The trim: the cover is read in strips ``strip`` wide across each axis, ``samples``
     points per strip over ``span`` of the other axis; a strip's height is the median of
-    the fine map's values where it has at least ``min_samples``, else of the smooth map's.
-    A strip is at the cover's height within ``tolerance`` (or ``tolerance_ratio`` of that
-    height, if larger), and lower below that. The cover is cut where, beyond its longest
-    run of strips at its height (unknown or higher strips up to ``max_gap`` bridged), at
-    least ``min_cut`` of it goes on, with at least ``min_other`` of those strips lower;
-    the part kept must be ``min_keep`` long. The cut side is moved onto the edge both
-    images show within ``snap_reach`` outward and ``snap_inward`` inward, and kept only
-    where it is one, or, with no edge there, where the step scores ``min_score_unseen``
-    or more (:func:`trim_side`; above 1: never).
+    the fine map's values where it has at least ``min_samples``, else of the smooth
+    map's where that has as many (else unknown). A strip is at the cover's height within
+    ``tolerance`` (or ``tolerance_ratio`` of that height, if larger), and lower below
+    that. The cover is cut where, beyond its longest run of strips at its height (unknown
+    or higher strips up to ``max_gap`` bridged), at least ``min_cut`` of it goes on, with
+    at least ``min_other`` of those strips lower and their median more than the tolerance
+    below; the part kept must be ``min_keep`` long. The cut side is moved onto the edge
+    both images show within ``snap_reach`` outward and ``snap_inward`` inward, and kept
+    only where it is one, or, with no edge there, where the step scores
+    ``min_score_unseen`` or more (:func:`trim_side`; above 1: never).
     """
 
     enabled: bool = True
@@ -101,11 +103,14 @@ def height_profile(P: NDArray[np.float64], axis: int,
         1: along side 1's, from corner 1 (0) towards corner 2 (3).
     maps : list of (HeightMap, ndarray (3, 4))
         Height maps with the projection of the image each is over, finest first.
+    cfg : TrimConfig
+        ``strip``, ``samples``, ``span``, ``min_samples``.
 
     Returns
     -------
     ndarray, shape (S,)
-        One height per ``cfg.strip`` of the cover's extent along ``axis``.
+        One height per strip of the cover's extent along ``axis``: S = its length over
+        ``cfg.strip``, rounded, strips of the length over S.
     """
     origin = P[0] if axis == 0 else P[1]
     along = (P[1] - P[0]) if axis == 0 else (P[2] - P[1])
@@ -139,11 +144,25 @@ def map_height(P: NDArray[np.float64], maps: list[tuple[HeightMap, NDArray[np.fl
                cfg: TrimConfig = TrimConfig()) -> float | None:
     """The height the maps read over a cover's middle (metres above the desk), or None.
 
-    A 15 × 15 grid over the middle 70 % of the cover ``P`` (4, 3) is read in each map,
-    finest first; the first map with values at ``min_height_share`` of the points gives
-    the median, refined to the mean of its values within one ``tolerance`` of it (the
-    maps' heights come in steps of a few millimetres); where fewer than
-    ``min_height_agree`` of its values lie that near, the map has no height for it.
+    A 15 × 15 grid over the middle 70 % of the cover is read in each map, finest first.
+    The first map with values at ``cfg.min_height_share`` of the points decides: the
+    median of its values, refined to the mean of those within ``cfg.tolerance`` of it (the
+    maps' heights come in steps of a few millimetres); or None where fewer than
+    ``cfg.min_height_agree`` of its values lie that near (the next map is not asked: the
+    finer map's values disagreeing is no reason to trust the coarser one).
+
+    Parameters
+    ----------
+    P : ndarray, shape (4, 3)
+        The cover's corners (world, metres), a rectangle in order around it.
+    maps : list of (HeightMap, ndarray (3, 4))
+        Height maps with the projection of the image each is over, finest first.
+    cfg : TrimConfig
+
+    Returns
+    -------
+    float or None
+        Metres above the desk.
     """
     g = np.linspace(0.15, 0.85, 15)
     s, r = np.meshgrid(g, g)
@@ -154,7 +173,7 @@ def map_height(P: NDArray[np.float64], maps: list[tuple[HeightMap, NDArray[np.fl
         inside = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
         z = hm.height[uv[inside, 1], uv[inside, 0]].astype(np.float64)
         z = z[np.isfinite(z)]
-        if len(z) >= cfg.min_height_share * len(pts):
+        if len(z) and len(z) >= cfg.min_height_share * len(pts):
             mid = float(np.median(z))
             near = np.abs(z - mid) <= cfg.tolerance
             # a dark cover's noise matches at random heights: most values must agree
@@ -164,8 +183,8 @@ def map_height(P: NDArray[np.float64], maps: list[tuple[HeightMap, NDArray[np.fl
     return None
 
 
-def trim_side(profile: NDArray[np.float64], height: float,
-              cfg: TrimConfig = TrimConfig()) -> tuple[int, float, float] | None:
+def trim_side(profile: NDArray[np.float64], height: float, cfg: TrimConfig = TrimConfig(),
+              *, strip: float | None = None) -> tuple[int, float, float] | None:
     """Where to cut a cover whose height profile shows another surface at one end.
 
     Parameters
@@ -174,6 +193,12 @@ def trim_side(profile: NDArray[np.float64], height: float,
         :func:`height_profile` (metres; NaN unknown).
     height : float
         The cover's height above the desk (metres).
+    cfg : TrimConfig
+        ``tolerance``, ``tolerance_ratio``, ``max_gap``, ``min_keep``, ``min_cut``,
+        ``min_other``.
+    strip : float, optional
+        The profile's strip width (metres; :func:`height_profile`'s length over S), by
+        default ``cfg.strip``.
 
     Returns
     -------
@@ -184,6 +209,7 @@ def trim_side(profile: NDArray[np.float64], height: float,
         0 to 1). None where the cover is at its height throughout (or the evidence is too
         thin).
     """
+    width = cfg.strip if strip is None else strip
     tol = max(cfg.tolerance, cfg.tolerance_ratio * height)
     known = np.isfinite(profile)
     same = known & (np.abs(profile - height) <= tol)
@@ -207,18 +233,18 @@ def trim_side(profile: NDArray[np.float64], height: float,
         else:
             start, gap = None, 0
     lo, hi = best
-    if (hi - lo) * cfg.strip < cfg.min_keep:
+    if (hi - lo) * width < cfg.min_keep:
         return None
     cuts = []
     for end, part in ((0, slice(0, lo)), (1, slice(hi, n))):
         k = np.arange(n)[part]
-        if len(k) * cfg.strip < cfg.min_cut or not known[k].any():
+        if len(k) * width < cfg.min_cut or not known[k].any():
             continue
         off = height - profile[k[known[k]]]
         share = np.count_nonzero(other[k]) / len(k)
         if share >= cfg.min_other and np.median(off) > tol:
             kept = np.count_nonzero(same[lo:hi]) / (hi - lo)
-            cuts.append((share * kept, end, len(k) * cfg.strip))
+            cuts.append((share * kept, end, len(k) * width))
     if not cuts:
         return None
     score, end, cut = max(cuts)  # the clearer, if both ends look cut
@@ -227,8 +253,23 @@ def trim_side(profile: NDArray[np.float64], height: float,
 
 def cut_cover(P: NDArray[np.float64], axis: int, end: int,
               cut: float) -> tuple[NDArray[np.float64], int]:
-    """The rectangle ``P`` (4, 3) with ``cut`` metres taken off one end along ``axis``
-    (:func:`trim_side`'s ``end``), and the side that moved (side s: corner s to s + 1)."""
+    """A rectangle with one end cut off.
+
+    Parameters
+    ----------
+    P : ndarray, shape (4, 3)
+        The cover's corners (world, metres), a rectangle in order around it.
+    axis, end : int
+        As :func:`height_profile` and :func:`trim_side`.
+    cut : float
+        Metres taken off.
+
+    Returns
+    -------
+    (ndarray (4, 3), int)
+        The new corners (the two at the cut end moved along ``axis``) and the side that
+        moved (side s from corner s to s + 1).
+    """
     P = P.copy()
     a, b = (0, 1) if axis == 0 else (1, 2)
     u = (P[b] - P[a]) / np.linalg.norm(P[b] - P[a])
