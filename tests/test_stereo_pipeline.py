@@ -12,6 +12,7 @@ from rovis.pipeline import DROP_REASONS, DetectConfig, Detector, Pair, detect, w
 from rovis.segment import canny
 from rovis.stereo import StereoConfig, find_in_other_view, match_quads, rectangle_normal
 from rovis.synth import render, sample_scene
+from rovis.trim import TrimConfig
 
 
 @pytest.fixture(scope="module")
@@ -371,9 +372,10 @@ def test_a_cover_tilted_by_one_images_cover_edge_step_is_refit_without_it():
     book = r.truth["books"][2]
     assert book["cover"] == "light"
 
-    def nearest(plain_alternative: bool, side_height: bool = True):
+    def nearest(plain_alternative: bool, side_height: bool = True, map_height: bool = True):
         cfg = DetectConfig(stereo=StereoConfig(plain_alternative=plain_alternative),
-                           side_height=SideHeightConfig(enabled=side_height))
+                           side_height=SideHeightConfig(enabled=side_height),
+                           trim=TrimConfig(map_height=map_height))
         res = Detector(sc.rig, cfg).detect(r.left, r.right)
         return min(res.objects, key=lambda o: np.linalg.norm(o.pose.center - book["center"]))
 
@@ -381,10 +383,12 @@ def test_a_cover_tilted_by_one_images_cover_edge_step_is_refit_without_it():
     assert np.linalg.norm(o.pose.center - book["center"]) < 0.01  # m
     assert abs(o.pose.size[2] - book["size"][2]) < 0.004  # m: the height
     np.testing.assert_allclose(sorted(o.pose.size[:2]), sorted(book["size"][:2]), atol=0.01)
-    # the retry is what finds it (without it, and without the sides' height, at most a
-    # cover centimetres off); the sides' height alone also puts a candidate pair there
-    assert np.linalg.norm(nearest(False, False).pose.center - book["center"]) > 0.02
+    # the retry is what finds it (without it, the sides' height and the height map's
+    # check, at most a cover centimetres off); the sides' height alone also puts a
+    # candidate pair there, and so does the height map's check (rovis.trim.map_height)
+    assert np.linalg.norm(nearest(False, False, False).pose.center - book["center"]) > 0.02
     assert np.linalg.norm(nearest(False).pose.center - book["center"]) < 0.01
+    assert np.linalg.norm(nearest(False, False).pose.center - book["center"]) < 0.01
 
 
 def test_a_plain_cover_showing_two_sides_is_found_by_stereo_among_two_sided_candidates():
