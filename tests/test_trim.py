@@ -137,6 +137,18 @@ def test_a_lower_start_is_cut_from_the_start_side():
     assert Q2[0, 1] == pytest.approx(0.05 + cut) and Q2[1, 1] == pytest.approx(0.05 + cut)
 
 
+def _frame(sc, r):
+    """A detector run on the rendering, and what its height-map steps are given: the
+    detector, its result, the prepared frame, the high-passed images and the maps."""
+    det = Detector(sc.rig)
+    res = det.detect(r.left, r.right)
+    f = det._prepare(r.left, r.right)
+    texture = det._texture(f.ideal)
+    maps = [(hm, Q) for hm, Q, _, _ in det._height_maps(f.rig, f.grads, f.desk_plane, texture,
+                                                         f.ideal)]
+    return det, res, f, texture, maps
+
+
 @pytest.fixture(scope="module")
 def desk_book():
     """A cover of the desk's own tone, 22 × 15 × 3 cm, alone on the desk at 300 lx."""
@@ -149,12 +161,7 @@ def desk_book():
 
 def test_a_plain_cover_at_the_wrong_height_is_moved_to_the_maps(desk_book):
     sc, r = desk_book
-    det = Detector(sc.rig)
-    res = det.detect(r.left, r.right)
-    f = det._prepare(r.left, r.right)
-    texture = det._texture(f.ideal)
-    maps = [(hm, Q) for hm, Q, _, _ in det._height_maps(f.rig, f.grads, f.desk_plane, texture,
-                                                         f.ideal)]
+    det, res, f, texture, maps = _frame(sc, r)
     truth = np.asarray(sc.books[0].corners)[:4]
     assert map_height(truth, maps) == pytest.approx(0.03, abs=0.003)
     # the cover 14 mm too high (a side on the page block's foot in one image does that)
@@ -192,11 +199,7 @@ def book_scene():
 
 def test_a_cover_reaching_over_the_desk_is_cut_back_to_its_end(book_scene):
     sc, r = book_scene
-    det = Detector(sc.rig)
-    res = det.detect(r.left, r.right)
-    f = det._prepare(r.left, r.right)
-    texture = det._texture(f.ideal)
-    maps = det._height_maps(f.rig, f.grads, f.desk_plane, texture, f.ideal)
+    det, res, f, texture, maps = _frame(sc, r)
     truth = np.asarray(sc.books[0].corners)[:4]
     # the cover with one end 6 cm out over the desk, in both images
     a = 0 if np.linalg.norm(truth[1] - truth[0]) > np.linalg.norm(truth[2] - truth[1]) else 1
@@ -208,7 +211,7 @@ def test_a_cover_reaching_over_the_desk_is_cut_back_to_its_end(book_scene):
     assert book is not None, why
     assert max(book.pose.size[:2]) == pytest.approx(0.26, abs=0.005)
     out = det._trimmed(f.rig, res.segmentation, f.grads, [(pair, book)], f.desk_plane,
-                       texture, [(hm, Q) for hm, Q, _, _ in maps])
+                       texture, maps)
     (_, trimmed), = out
     assert max(trimmed.pose.size[:2]) == pytest.approx(0.20, abs=0.004)  # m
     assert np.linalg.norm(trimmed.pose.center[:2] - np.asarray(sc.books[0].center)[:2]) < 0.004
@@ -217,7 +220,7 @@ def test_a_cover_reaching_over_the_desk_is_cut_back_to_its_end(book_scene):
         f.rig, Pair(geometry.project(f.rig.Q_L, truth), geometry.project(f.rig.Q_R, truth),
                     1.0, 0.0), f.desk_plane, texture)
     (_, same), = det._trimmed(f.rig, res.segmentation, f.grads, [(pair, book)], f.desk_plane,
-                              texture, [(hm, Q) for hm, Q, _, _ in maps])
+                              texture, maps)
     assert same is book
 
 
