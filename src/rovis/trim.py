@@ -67,7 +67,7 @@ class TrimConfig:
     snap_inward: float = 0.02
     min_score_unseen: float = 0.9
     map_height: bool = True
-    min_height_move: float = 0.008
+    min_height_move: float = 0.003  # the maps sweep every 3 mm
     min_height_share: float = 0.4
     min_height_agree: float = 0.5
 
