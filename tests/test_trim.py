@@ -149,6 +149,14 @@ def _frame(sc, r):
     return det, res, f, texture, maps
 
 
+def _book(det, f, corners, texture):
+    """The pair and book (or the reason there is none) of world cover ``corners`` (4, 3)
+    projected into both images of frame ``f``."""
+    pair = Pair(geometry.project(f.rig.Q_L, corners), geometry.project(f.rig.Q_R, corners),
+                1.0, 0.0)
+    return det._reconstruct_or_why(f.rig, pair, f.desk_plane, texture)
+
+
 @pytest.fixture(scope="module")
 def desk_book():
     """A cover of the desk's own tone, 22 × 15 × 3 cm, alone on the desk at 300 lx."""
@@ -168,9 +176,7 @@ def test_a_plain_cover_at_the_wrong_height_is_moved_to_the_maps(desk_book):
     high = truth + [0.0, 0.0, 0.014]
     # (the print's height test would drop it here: the cover's mottle shows it to the sweep)
     lax = Detector(sc.rig, with_settings(DetectConfig(), ["sweep.check=false"]))
-    pair, book, why = lax._reconstruct_or_why(
-        f.rig, Pair(geometry.project(f.rig.Q_L, high), geometry.project(f.rig.Q_R, high),
-                    1.0, 0.0), f.desk_plane, texture)
+    pair, book, why = _book(lax, f, high, texture)
     assert book is not None, why
     assert book.pose.size[2] == pytest.approx(0.044, abs=0.002)
     (_, moved), = det._at_map_height(f.rig, res.segmentation, f.grads, [(pair, book)],
@@ -179,9 +185,7 @@ def test_a_plain_cover_at_the_wrong_height_is_moved_to_the_maps(desk_book):
     assert np.linalg.norm(moved.pose.center[:2] - np.asarray(sc.books[0].center)[:2]) < 0.004
     assert sorted(moved.pose.size[:2]) == pytest.approx([0.15, 0.22], abs=0.004)
     # the cover where it is stays so
-    pair, book, _ = det._reconstruct_or_why(
-        f.rig, Pair(geometry.project(f.rig.Q_L, truth), geometry.project(f.rig.Q_R, truth),
-                    1.0, 0.0), f.desk_plane, texture)
+    pair, book, _ = _book(det, f, truth, texture)
     (_, same), = det._at_map_height(f.rig, res.segmentation, f.grads, [(pair, book)],
                                     f.desk_plane, texture, maps)
     assert same is book
@@ -206,8 +210,7 @@ def test_a_cover_reaching_over_the_desk_is_cut_back_to_its_end(book_scene):
     u = (truth[a + 1] - truth[a]) / np.linalg.norm(truth[a + 1] - truth[a])
     long = truth.copy()
     long[[a + 1, a + 2]] += 0.06 * u
-    pair = Pair(geometry.project(f.rig.Q_L, long), geometry.project(f.rig.Q_R, long), 1.0, 0.0)
-    pair, book, why = det._reconstruct_or_why(f.rig, pair, f.desk_plane, texture)
+    pair, book, why = _book(det, f, long, texture)
     assert book is not None, why
     assert max(book.pose.size[:2]) == pytest.approx(0.26, abs=0.005)
     out = det._trimmed(f.rig, res.segmentation, f.grads, [(pair, book)], f.desk_plane,
@@ -216,9 +219,7 @@ def test_a_cover_reaching_over_the_desk_is_cut_back_to_its_end(book_scene):
     assert max(trimmed.pose.size[:2]) == pytest.approx(0.20, abs=0.004)  # m
     assert np.linalg.norm(trimmed.pose.center[:2] - np.asarray(sc.books[0].center)[:2]) < 0.004
     # and the cover as it is stays so
-    pair, book, _ = det._reconstruct_or_why(
-        f.rig, Pair(geometry.project(f.rig.Q_L, truth), geometry.project(f.rig.Q_R, truth),
-                    1.0, 0.0), f.desk_plane, texture)
+    pair, book, _ = _book(det, f, truth, texture)
     (_, same), = det._trimmed(f.rig, res.segmentation, f.grads, [(pair, book)], f.desk_plane,
                               texture, maps)
     assert same is book

@@ -419,15 +419,14 @@ class Detector:
         if self.cfg.split.enabled and desk_plane is not None:
             found = self._split_unions(rig, segs, grads, found, desk_plane, texture)
             lap("split")
+        read = [(hm, Q) for hm, Q, _, _ in maps]  # each map and the projection it is over
         # beyond the paper: a plain cover at the wrong height, moved to the height map's
-        if self.cfg.trim.map_height and maps and desk_plane is not None:
-            found = self._at_map_height(rig, segs, grads, found, desk_plane, texture,
-                                        [(hm, Q) for hm, Q, _, _ in maps])
+        if self.cfg.trim.map_height and read and desk_plane is not None:
+            found = self._at_map_height(rig, segs, grads, found, desk_plane, texture, read)
             lap("trim")
         # beyond the paper: a cover that spans a neighbour at another height, cut back
-        if self.cfg.trim.enabled and maps and desk_plane is not None:
-            found = self._trimmed(rig, segs, grads, found, desk_plane, texture,
-                                  [(hm, Q) for hm, Q, _, _ in maps])
+        if self.cfg.trim.enabled and read and desk_plane is not None:
+            found = self._trimmed(rig, segs, grads, found, desk_plane, texture, read)
             lap("trim")
         # last, since the extent step may grow a piece of a cover to the whole cover
         found, small = self._without_small(found)

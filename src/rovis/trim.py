@@ -122,12 +122,7 @@ def height_profile(P: NDArray[np.float64], axis: int,
     pts = origin + t[:, None, None] * along + g[None, :, None] * across  # (S, G, 3)
     out = np.full(n_strips, np.nan)
     for hm, Q in maps:
-        uv = np.round(geometry.project(Q, pts.reshape(-1, 3))).astype(int)
-        h, w = hm.height.shape
-        inside = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
-        z = np.full(len(uv), np.nan)
-        z[inside] = hm.height[uv[inside, 1], uv[inside, 0]]
-        z = z.reshape(n_strips, cfg.samples)
+        z = _read(hm, Q, pts.reshape(-1, 3)).reshape(n_strips, cfg.samples)
         count = np.count_nonzero(np.isfinite(z), axis=1)
         enough = np.flatnonzero(np.isnan(out) & (count >= cfg.min_samples))
         if len(enough):
@@ -138,6 +133,18 @@ def height_profile(P: NDArray[np.float64], axis: int,
             rows = np.arange(len(enough))
             out[enough] = 0.5 * (z[rows, (n - 1) // 2] + z[rows, n // 2])
     return out
+
+
+def _read(hm: HeightMap, Q: NDArray[np.float64],
+          pts: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The map's height (N,) at world points ``pts`` (N, 3) seen through ``Q`` (3, 4), at
+    the nearest pixel; NaN outside the map or where it has none."""
+    uv = np.round(geometry.project(Q, pts)).astype(int)
+    h, w = hm.height.shape
+    inside = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+    z = np.full(len(uv), np.nan)
+    z[inside] = hm.height[uv[inside, 1], uv[inside, 0]]
+    return z
 
 
 def map_height(P: NDArray[np.float64], maps: list[tuple[HeightMap, NDArray[np.float64]]],
@@ -168,10 +175,7 @@ def map_height(P: NDArray[np.float64], maps: list[tuple[HeightMap, NDArray[np.fl
     s, r = np.meshgrid(g, g)
     pts = P[0] + s.reshape(-1, 1) * (P[1] - P[0]) + r.reshape(-1, 1) * (P[3] - P[0])
     for hm, Q in maps:
-        uv = np.round(geometry.project(Q, pts)).astype(int)
-        h, w = hm.height.shape
-        inside = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
-        z = hm.height[uv[inside, 1], uv[inside, 0]].astype(np.float64)
+        z = _read(hm, Q, pts)
         z = z[np.isfinite(z)]
         if len(z) and len(z) >= cfg.min_height_share * len(pts):
             mid = float(np.median(z))
