@@ -39,6 +39,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the split of touching books", ["split.enabled=false"]),
     ("the trim by the height map", ["trim.enabled=false"]),
     ("the height check by the height map", ["trim.map_height=false"]),
+    ("the grow by the height map", ["trim.grow=false"]),
 ]
 
 

@@ -1,6 +1,7 @@
 """The height map's checks of each book (rovis.trim): its height over the cover
-(map_height, Detector._at_map_height) and the cut where the map leaves it (trim_side,
-cut_cover, Detector._trimmed)."""
+(map_height, Detector._at_map_height), the cut where the map leaves it (trim_side,
+cut_cover, Detector._trimmed) and the grow where it goes on beyond a side (grow_run,
+Detector._grown)."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ from rovis.pipeline import DetectConfig, Detector, Pair, with_settings
 from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
-from rovis.trim import TrimConfig, cut_cover, height_profile, map_height, trim_side
+from rovis.trim import TrimConfig, cut_cover, grow_run, height_profile, map_height, trim_side
 
 CFG = TrimConfig()
 H = 0.03  # metres, the cover's height in the profile tests
@@ -225,8 +226,66 @@ def test_a_cover_reaching_over_the_desk_is_cut_back_to_its_end(book_scene):
     assert same is book
 
 
+@pytest.mark.parametrize("end", [0, 1])
+def test_a_cover_cut_short_is_grown_to_its_end(book_scene, end):
+    sc, r = book_scene
+    det, res, f, texture, maps = _frame(sc, r)
+    truth = np.asarray(sc.books[0].corners)[:4]
+    a = 0 if np.linalg.norm(truth[1] - truth[0]) > np.linalg.norm(truth[2] - truth[1]) else 1
+    u = (truth[a + 1] - truth[a]) / np.linalg.norm(truth[a + 1] - truth[a])
+    short = truth.copy()
+    # one end 4 cm in, as a quad stopping at a title band leaves it
+    if end == 0:
+        short[[a, (a + 3) % 4]] += 0.04 * u
+    else:
+        short[[a + 1, a + 2]] -= 0.04 * u
+    pair, book, why = _book(det, f, short, texture)
+    assert book is not None, why
+    assert max(book.pose.size[:2]) == pytest.approx(0.16, abs=0.005)
+    (_, grown), = det._grown(f.rig, res.segmentation, f.grads, [(pair, book)], f.desk_plane,
+                             texture, maps)
+    assert max(grown.pose.size[:2]) == pytest.approx(0.20, abs=0.004)  # m
+    assert np.linalg.norm(grown.pose.center[:2] - np.asarray(sc.books[0].center)[:2]) < 0.004
+    # the whole cover stays as it is
+    pair, book, _ = _book(det, f, truth, texture)
+    (_, same), = det._grown(f.rig, res.segmentation, f.grads, [(pair, book)], f.desk_plane,
+                            texture, maps)
+    assert same is book
+
+
+def test_grow_run_ends_where_the_map_leaves_the_cover_height():
+    Q = np.array([[1000.0, 0.0, 0.0, 0.0], [0.0, 1000.0, 0.0, 0.0], [0.0, 0.0, -1.0, 1.0]])
+    height = np.zeros((400, 400), np.float32)
+    height[:, 50:190] = 0.02  # the cover from x = 0.05 to 0.19 m, the desk around it
+    hm = HeightMap(height, np.array([0.0, 0.02]), (0, 0, 400, 400))
+    # a quad stopping at x = 0.15 m: side 1 (corner 1 to 2) faces +x
+    P = np.array([[0.05, 0.05, 0.0], [0.15, 0.05, 0.0], [0.15, 0.15, 0.0], [0.05, 0.15, 0.0]])
+    assert grow_run(P, 1, 0.02, [(hm, Q)]) == pytest.approx(0.04, abs=0.0051)
+    assert grow_run(P, 3, 0.02, [(hm, Q)]) == 0.0  # the desk right beyond side 3
+    # a run longer than the reach ends there
+    assert grow_run(P, 1, 0.02, [(hm, Q)], replace(CFG, grow_reach=0.03)) == \
+        pytest.approx(0.03, abs=1e-9)
+    # a higher surface ends the run as a lower one does (another book on the cover)
+    height[:, 170:190] = 0.05
+    assert grow_run(P, 1, 0.02, [(hm, Q)]) == pytest.approx(0.02, abs=0.0051)
+    # unknown strips are bridged up to max_gap, but a run of them alone is no cover
+    height[:, 150:190] = np.nan
+    assert grow_run(P, 1, 0.02, [(hm, Q)]) == 0.0
+    height[:, 150:165] = 0.02
+    height[:, 165:175] = np.nan  # 10 mm unknown, then the cover again
+    height[:, 175:190] = 0.02
+    assert grow_run(P, 1, 0.02, [(hm, Q)]) == pytest.approx(0.04, abs=0.0051)
+    # ...and a longer unknown stretch (20 mm, over max_gap's 15) ends it
+    height[:, 165:185] = np.nan
+    assert grow_run(P, 1, 0.02, [(hm, Q)]) == pytest.approx(0.015, abs=0.0051)
+
+
 def test_bad_settings_are_refused():
     with pytest.raises(ValueError, match="strip"):
         TrimConfig(strip=0.0)
     with pytest.raises(ValueError, match="min_other"):
         TrimConfig(min_other=1.5)
+    with pytest.raises(ValueError, match="bad grow_reach"):
+        TrimConfig(grow_min=0.0)
+    with pytest.raises(ValueError, match="bad grow_min_same"):
+        TrimConfig(grow_continuation=2.0)

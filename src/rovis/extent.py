@@ -160,13 +160,18 @@ def _moved(P: NDArray[np.float64], s: int, d: NDArray[np.float64]) -> NDArray[np
 
 def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
                grads: dict[str, Gradients], min_strength: dict[str, float],
-               drop: NDArray[np.float64], cfg: ExtentConfig) -> float:
+               drop: NDArray[np.float64], cfg: ExtentConfig, *, limit: float = np.inf,
+               continuation: float | None = None) -> float:
     """How far side ``s`` may move outward (metres; 0: not at all). ``drop`` (3,) moves a
-    cover point straight down onto the desk."""
+    cover point straight down onto the desk. ``limit``: the farthest move looked at
+    (metres). ``continuation``: instead of both neighbouring sides carrying edges in both
+    images (``cfg.min_support``, up to the moved side), each must in either image along
+    this share of the way (:mod:`rovis.trim`'s grow, where the height map vouches for the
+    cover beyond the side)."""
     a, b = s, (s + 1) % 4
     # Neighbouring sides' lengths bound the growth (no book is larger than max_side).
-    room = cfg.max_side - max(np.linalg.norm(P[a] - P[(a - 1) % 4]),
-                              np.linalg.norm(P[b] - P[(b + 1) % 4]))
+    room = min(limit, cfg.max_side - max(np.linalg.norm(P[a] - P[(a - 1) % 4]),
+                                         np.linalg.norm(P[b] - P[(b + 1) % 4])))
     if room < cfg.min_grow:
         return 0.0
     d = np.arange(cfg.step, room + 1e-9, cfg.step)
@@ -188,7 +193,7 @@ def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]]
         ok &= (mid - bottom) @ n_out > 2.0
         # the neighbouring sides' continuations: edge hits at each step, then the share of
         # hits from the old corner out to each offset
-        for k, old in ((a, P[a]), (b, P[b])):
+        for k, old in ((a, P[a]), (b, P[b])) if continuation is None else ():  # (strict)
             ext = geometry.project(Q[cam], moved[:, k])  # (D, 2)
             start = geometry.project(Q[cam], old[None])[0]
             hit = _hits(grads[cam], start, ext, thr, cfg.max_angle_deg)
@@ -198,6 +203,15 @@ def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]]
             # ...and reach the moved side itself: no overshoot onto a line further out
             w = min(len(d), max(1, int(round(cfg.reach / cfg.step))))
             ok &= (n_hit[1:] - n_hit[np.maximum(n - w, 0)]) / np.minimum(n, w) >= 0.5
+    if continuation is not None:  # each neighbour's, in either image, along this share
+        for k, old in ((a, P[a]), (b, P[b])):
+            share = np.zeros(len(d))
+            for cam in ("left", "right"):
+                ext = geometry.project(Q[cam], moved[:, k])
+                start = geometry.project(Q[cam], old[None])[0]
+                hit = _hits(grads[cam], start, ext, min_strength[cam], cfg.max_angle_deg)
+                share = np.maximum(share, np.cumsum(hit) / np.arange(1, len(d) + 1))
+            ok &= share >= continuation
     ok &= d >= cfg.min_grow
     if not ok.any():  # (the common case: a cover's own side, its neighbours end there)
         return 0.0
@@ -345,6 +359,30 @@ def _on_desk(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
         return False
     level = _edge_level(P, s, Q, grads, up, drop, cfg)
     return level is not None and level < 0.5 * float(np.linalg.norm(drop))
+
+
+def _foot_is_edge(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
+                  grads: dict[str, Gradients], min_strength: dict[str, float],
+                  drop: NDArray[np.float64], cfg: ExtentConfig, min_px: float = 2.0) -> bool:
+    """Whether the foot of the page block below side ``s`` of cover ``P`` (4, 3) (the side
+    moved by ``drop``, onto the desk) is an edge in each image where it lies at least
+    ``min_px`` outside the cover (True where it shows in neither)."""
+    foot = P + drop
+    u = np.linspace(0.1, 0.9, 24)
+    for cam in ("left", "right"):
+        a, b = s, (s + 1) % 4
+        q = geometry.project(Q[cam], np.array([P[a], P[b], foot[a], foot[b]]))
+        n_out = np.array([q[1, 1] - q[0, 1], q[0, 0] - q[1, 0]])
+        n_out /= max(float(np.linalg.norm(n_out)), 1e-9)
+        if n_out @ (0.5 * (q[0] + q[1]) - geometry.project(Q[cam], P).mean(axis=0)) < 0:
+            n_out = -n_out
+        if (0.5 * (q[2] + q[3]) - 0.5 * (q[0] + q[1])) @ n_out < min_px:
+            continue
+        pts = q[2] + u[:, None] * (q[3] - q[2])
+        edge = _edge(grads[cam], q[2], pts, cfg.max_angle_deg)
+        if (edge >= min_strength[cam]).mean() < cfg.min_support:
+            return False
+    return True
 
 
 def _block_shows(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],

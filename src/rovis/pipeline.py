@@ -29,7 +29,8 @@ from numpy.typing import NDArray
 from rovis import geometry, marker
 from rovis.calib import StereoRig
 from rovis.extent import (CompleteConfig, ExtentConfig, FacingConfig, SideHeightConfig,
-                          _side_scores, complete_open, fit_pair_extent, height_from_sides,
+                          _foot_is_edge, _grow_side, _moved, _on_desk, _side_scores,
+                          complete_open, fit_pair_extent, height_from_sides,
                           settle_facing_sides)
 from rovis.heightmap import (HeightMap, HeightMapConfig, height_map, raised_covers,
                              smooth_height_map, snap_sides)
@@ -43,7 +44,7 @@ from rovis.segment.boundary import Fit, refine_quad, refine_quad_both, refine_si
 from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
 from rovis.split import SplitConfig, split_union
 from rovis.track import TrackConfig, follow
-from rovis.trim import TrimConfig, cut_cover, height_profile, map_height, trim_side
+from rovis.trim import TrimConfig, cut_cover, grow_run, height_profile, map_height, trim_side
 from rovis.stereo import (Match, StereoConfig, find_in_other_view, flat_rectangle, match_quads,
                           pool_pairs)
 from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pass, on_plane,
@@ -129,9 +130,10 @@ class DetectConfig:
     heightmap, trim
         :class:`rovis.heightmap.HeightMapConfig`, :class:`rovis.trim.TrimConfig`:
         books that stand out of the desk in a height map; with the maps, a plain cover
-        at the wrong height moved to theirs, and a cover that takes in a lower neighbour
-        cut back where the maps leave its height (beyond the paper; need the desk plane;
-        switching the height map off switches these off too).
+        at the wrong height moved to theirs, a cover that takes in a lower neighbour
+        cut back where the maps leave its height, and one cut short grown to where they
+        do (beyond the paper; need the desk plane; switching the height map off switches
+        these off too).
     """
 
     method: str = "closed"
@@ -427,6 +429,10 @@ class Detector:
         # beyond the paper: a cover that spans a neighbour at another height, cut back
         if self.cfg.trim.enabled and read and desk_plane is not None:
             found = self._trimmed(rig, segs, grads, found, desk_plane, texture, read)
+            lap("trim")
+        # ...and one that stops short of where the maps go on at its height, grown
+        if self.cfg.trim.grow and read and desk_plane is not None:
+            found = self._grown(rig, segs, grads, found, desk_plane, texture, read)
             lap("trim")
         # last, since the extent step may grow a piece of a cover to the whole cover
         found, small = self._without_small(found)
@@ -1042,6 +1048,62 @@ class Detector:
                 if new_book is not None and min(new_book.pose.size[:2]) >= self.cfg.min_cover_side:
                     pair, book = new_pair, new_book
             out.append((pair, book))
+        return out
+
+    def _grown(self, rig: StereoRig, segs: dict[str, Segmentation],
+               grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
+               desk_plane: NDArray[np.float64],
+               texture: dict[str, NDArray[np.float32]] | None,
+               maps: list[tuple[HeightMap, NDArray[np.float64]]],
+               ) -> list[tuple[Pair, BookDetection]]:
+        """Each cover whose side stops short of where the maps go on at its height (a
+        title band, a frame of print inside the cover), that side moved out to the edge
+        both images show within that run (:func:`rovis.trim.grow_run`,
+        :class:`rovis.trim.TrimConfig`'s grow settings). A new side stereo puts on the
+        desk is not taken (:func:`rovis.extent._on_desk`, with ``extent.height_check``); a
+        grown cover over more than ``stereo.transfer_max_overlap`` of another book (of the
+        smaller, in the left image) is not kept; the grown cover goes through the pose
+        checks again. The maps' own books are grown too (measured with them)."""
+        cfg = self.cfg.trim
+        Q = {"left": rig.Q_L, "right": rig.Q_R}
+        up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+        strength = self._edge_strength(segs)
+        overlap = self.cfg.stereo.transfer_max_overlap
+        out = list(found)
+        for i, (pair, book) in enumerate(found):
+            P = geometry.triangulate(rig.Q_L, rig.Q_R, pair.left, pair.right)
+            height = float(np.mean(geometry.plane_distance(desk_plane, P)))
+            c = P.mean(axis=0)
+            P = P - np.outer((P - c) @ up, up)
+            drop = -float(up @ c + desk_plane[3] / np.linalg.norm(desk_plane[:3])) * up
+            moved = False
+            for s in range(4):
+                limit = grow_run(P, s, height, maps, cfg)
+                if limit <= 0:
+                    continue
+                d = _grow_side(P, s, Q, grads, strength, drop,
+                               replace(self.cfg.extent, min_grow=cfg.grow_min),
+                               limit=limit + cfg.grow_margin,
+                               continuation=cfg.grow_continuation)
+                if d <= 0:
+                    continue
+                grown = _moved(P, s, np.array([d]))[0]
+                if self.cfg.extent.height_check and _on_desk(grown, s, Q, grads, up, drop,
+                                                              self.cfg.extent):
+                    continue
+                if cfg.grow_foot and not _foot_is_edge(grown, s, Q, grads, strength, drop,
+                                                       self.cfg.extent):
+                    continue
+                P, moved = grown, True
+            if not moved:
+                continue
+            left = geometry.project(rig.Q_L, P)
+            if any(quad_overlap(left, p.left) > overlap for k, (p, _) in enumerate(out) if k != i):
+                continue
+            trial = replace(pair, left=left, right=geometry.project(rig.Q_R, P))
+            new_pair, new_book, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
+            if new_book is not None:
+                out[i] = (new_pair, new_book)
         return out
 
     def _from_height_map(self, rig: StereoRig, grads: dict[str, Gradients],

@@ -50,6 +50,17 @@ class TrimConfig:
     both images show within ``snap_reach`` outward and ``snap_inward`` inward, and kept
     only where it is one, or, with no edge there, where the step scores
     ``min_score_unseen`` or more (:func:`trim_side`; above 1: never).
+
+    The grow (``grow``), the trim's counterpart: a side that stops short of where the maps
+    go on at the cover's height (:func:`grow_run`, read over ``grow_reach`` beyond it; at
+    least ``grow_min_same`` of the run's strips known to be at the height) is moved out to the
+    last edge both images show up to ``grow_margin`` from that run's end (negative: short
+    of it, since the maps carry a cover's height some 5-20 mm beyond its edge), at least
+    ``grow_min`` (:func:`rovis.extent._grow_side` with that limit). Each of its
+    neighbouring sides must go on as an edge, in either image, along ``grow_continuation``
+    of the way; with ``grow_foot``, where the new side's page block shows, its foot must be
+    an edge in each image that shows it (a shadow's or the desk's line beyond the block has
+    no block of its own).
     """
 
     enabled: bool = True
@@ -66,6 +77,13 @@ class TrimConfig:
     snap_reach: float = 0.01
     snap_inward: float = 0.02
     min_score_unseen: float = 0.9
+    grow: bool = True
+    grow_reach: float = 0.09
+    grow_margin: float = -0.005  # the maps carry a cover's height 5-20 mm beyond its edge
+    grow_min_same: float = 0.3
+    grow_min: float = 0.015  # smaller moves took a shadow's or block's line, measured
+    grow_continuation: float = 0.5
+    grow_foot: bool = True
     map_height: bool = True
     min_height_move: float = 0.003  # the maps sweep every 3 mm
     min_height_share: float = 0.4
@@ -81,11 +99,16 @@ class TrimConfig:
             ("snap_reach", self.snap_reach >= 0 and self.snap_inward >= 0),
             ("min_height_move", self.min_height_move >= 0),
             ("min_height_share", 0 <= self.min_height_share <= 1
-             and 0 <= self.min_height_agree <= 1)) if not ok]
+             and 0 <= self.min_height_agree <= 1),
+            ("grow_reach", self.grow_reach > 0 and self.grow_min > 0),
+            ("grow_min_same", 0 <= self.grow_min_same <= 1
+             and 0 <= self.grow_continuation <= 1)) if not ok]
         if problems:
             raise ValueError(f"trim: bad {', '.join(problems)} (strip, min_cut and min_keep "
-                             "positive; span in (0, 1]; min_other, min_height_share and "
-                             "min_height_agree in [0, 1]; min_samples from 1 to samples; the "
+                             "positive, as are grow_reach and grow_min; span in (0, 1]; "
+                             "min_other, min_height_share, min_height_agree, grow_min_same "
+                             "and grow_continuation in [0, 1]; min_samples from 1 to samples; "
+                             "grow_margin of any sign; the "
                              f"rest >= 0), got {self}")
 
 
@@ -282,3 +305,55 @@ def cut_cover(P: NDArray[np.float64], axis: int, end: int,
     for k in (side, (side + 1) % 4):
         P[k] = P[k] + (cut if end == 0 else -cut) * u
     return P, side
+
+
+def grow_run(P: NDArray[np.float64], s: int, height: float,
+             maps: list[tuple[HeightMap, NDArray[np.float64]]],
+             cfg: TrimConfig = TrimConfig()) -> float:
+    """How far beyond one side of a cover the maps go on at the cover's height.
+
+    Strips ``cfg.strip`` wide are read outward over ``cfg.grow_reach`` (:func:`height_profile`,
+    the rectangle beyond the side, its neighbouring sides continued): the run goes from the
+    side to the last strip at the cover's height (within the trim's tolerance) before one
+    at another height, lower or higher; unknown strips are bridged up to ``cfg.max_gap``.
+
+    Parameters
+    ----------
+    P : ndarray, shape (4, 3)
+        The cover's corners (world, metres), a rectangle in order around it.
+    s : int
+        The side, from corner ``s`` to ``s + 1``.
+    height : float
+        The cover's height above the desk (metres).
+    maps : list of (HeightMap, ndarray (3, 4))
+        Height maps with the projection of the image each is over, finest first.
+    cfg : TrimConfig
+
+    Returns
+    -------
+    float
+        The run's length (metres); 0 where it is empty or fewer than ``cfg.grow_min_same``
+        of its strips are known to be at the cover's height.
+    """
+    a, b = s, (s + 1) % 4
+    u_a = P[a] - P[(a - 1) % 4]  # the neighbouring sides continued, as extent._moved
+    u_b = P[b] - P[(b + 1) % 4]
+    u_a, u_b = (u / max(float(np.linalg.norm(u)), 1e-12) for u in (u_a, u_b))
+    R = np.array([P[a], P[b], P[b] + cfg.grow_reach * u_b, P[a] + cfg.grow_reach * u_a])
+    profile = height_profile(R, 1, maps, cfg)
+    width = cfg.grow_reach / len(profile)
+    tol = max(cfg.tolerance, cfg.tolerance_ratio * height)
+    known = np.isfinite(profile)
+    same = known & (np.abs(profile - height) <= tol)
+    max_gap = int(round(cfg.max_gap / cfg.strip))
+    last, gap = -1, 0
+    for k in range(len(profile)):
+        if same[k]:
+            last, gap = k, 0
+        elif known[k] or gap >= max_gap:
+            break
+        else:
+            gap += 1
+    if last < 0 or np.count_nonzero(same[:last + 1]) < cfg.grow_min_same * (last + 1):
+        return 0.0
+    return (last + 1) * width
