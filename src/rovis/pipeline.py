@@ -276,6 +276,16 @@ class Pair:
     three_sided: bool = False  # a segmented cover with its fourth side unseen (either image)
 
 
+
+def _on_cover_plane(rig: StereoRig, pair: Pair, desk_plane: NDArray[np.float64],
+                    ) -> tuple[NDArray[np.float64], float]:
+    """A pair's triangulated cover corners (4, 3) flattened onto the plane parallel to the
+    desk through their mean, and that plane's height above the desk (metres)."""
+    P = geometry.triangulate(rig.Q_L, rig.Q_R, pair.left, pair.right)
+    height = float(np.mean(geometry.plane_distance(desk_plane, P)))
+    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+    return P - np.outer((P - P.mean(axis=0)) @ up, up), height
+
 class Detector:
     """Detects books in stereo pairs from one calibrated rig.
 
@@ -1004,16 +1014,13 @@ class Detector:
         images: its other sides keep their place in 3D, not each image's own fit."""
         cfg = self.cfg.trim
         Q = {"left": rig.Q_L, "right": rig.Q_R}
-        up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
         strength = self._edge_strength(segs)
         out = []
         for pair, book in found:
             if book.source == "height map":
                 out.append((pair, book))
                 continue
-            P = geometry.triangulate(rig.Q_L, rig.Q_R, pair.left, pair.right)
-            height = float(np.mean(geometry.plane_distance(desk_plane, P)))
-            P = P - np.outer((P - P.mean(axis=0)) @ up, up)  # onto the cover plane
+            P, height = _on_cover_plane(rig, pair, desk_plane)
             moved = False
             for _ in range(2):  # a cover over two others, one along each axis
                 cuts = []
@@ -1069,20 +1076,18 @@ class Detector:
         up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
         strength = self._edge_strength(segs)
         overlap = self.cfg.stereo.transfer_max_overlap
+        extent = replace(self.cfg.extent, min_grow=cfg.grow_min)
         out = list(found)
         for i, (pair, book) in enumerate(found):
-            P = geometry.triangulate(rig.Q_L, rig.Q_R, pair.left, pair.right)
-            height = float(np.mean(geometry.plane_distance(desk_plane, P)))
-            c = P.mean(axis=0)
-            P = P - np.outer((P - c) @ up, up)
-            drop = -float(up @ c + desk_plane[3] / np.linalg.norm(desk_plane[:3])) * up
+            P, height = _on_cover_plane(rig, pair, desk_plane)
+            # a cover point straight down onto the desk (as rovis.extent.fit_extent)
+            drop = -float(up @ P.mean(axis=0) + desk_plane[3] / np.linalg.norm(desk_plane[:3])) * up
             moved = False
             for s in range(4):
                 limit = grow_run(P, s, height, maps, cfg)
                 if limit <= 0:
                     continue
-                d = _grow_side(P, s, Q, grads, strength, drop,
-                               replace(self.cfg.extent, min_grow=cfg.grow_min),
+                d = _grow_side(P, s, Q, grads, strength, drop, extent,
                                limit=limit + cfg.grow_margin,
                                continuation=cfg.grow_continuation)
                 if d <= 0:
