@@ -155,3 +155,40 @@ def test_a_rectangle_on_the_desk_stays_parallel_to_it(rig):
     off = max(np.linalg.norm(_project(rig.Q_L, fit) - tl, axis=1).max(),
               np.linalg.norm(_project(rig.Q_R, fit) - tr, axis=1).max())
     assert off > 2.0  # px
+
+
+def test_rectangle_on_the_desk_is_the_least_squares_optimum(rig):
+    """The fit parallel to the desk (analytic Jacobian) reaches the reprojection error's
+    minimum: no nearby flat rectangle (heading, centre, size moved a little) fits the
+    noisy corners better, and two starts end at one answer."""
+    desk = np.array([0.0, 0.0, 1.0, 0.0])
+    rng = np.random.default_rng(5)
+    for yaw in (10.0, 75.0, 140.0):
+        P = _cover(yaw, [0.5, 0.4, 0.03])
+        pl = _project(rig.Q_L, P) + rng.normal(0, 0.7, (4, 2))
+        pr = _project(rig.Q_R, P) + rng.normal(0, 0.7, (4, 2))
+
+        def cost(C: np.ndarray) -> float:
+            return float(np.sum((_project(rig.Q_L, C) - pl) ** 2)
+                         + np.sum((_project(rig.Q_R, C) - pr) ** 2))
+
+        fit = geometry.fit_rectangle(rig.Q_L, rig.Q_R, pl, pr, P + 0.004, desk)
+        again = geometry.fit_rectangle(rig.Q_L, rig.Q_R, pl, pr,
+                                       geometry.triangulate(rig.Q_L, rig.Q_R, pl, pr), desk)
+        assert np.abs(fit - again).max() < 1e-6  # metres
+        centre = fit.mean(axis=0)
+        x = (fit[1] - fit[0]) / np.linalg.norm(fit[1] - fit[0])
+        y = (fit[3] - fit[0]) / np.linalg.norm(fit[3] - fit[0])
+        best = cost(fit)
+        for move in ([0.0005, 0, 0], [0, 0.0005, 0], [0, 0, 0.0005]):  # the centre, 0.5 mm
+            for sign in (1, -1):
+                assert cost(fit + sign * np.array(move)) >= best
+        turn = np.radians(0.05)  # the heading, about the centre
+        R = np.array([[np.cos(turn), -np.sin(turn), 0], [np.sin(turn), np.cos(turn), 0],
+                      [0, 0, 1]])
+        assert cost((fit - centre) @ R.T + centre) >= best
+        assert cost((fit - centre) @ R + centre) >= best
+        for axis in (x, y):  # the length and the width, 0.5 mm longer or shorter
+            side = np.sign((fit - centre) @ axis)[:, None] * axis
+            assert cost(fit + 0.00025 * side) >= best
+            assert cost(fit - 0.00025 * side) >= best
