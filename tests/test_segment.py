@@ -450,3 +450,19 @@ def test_the_cover_edge_offset_is_measured_from_the_side():
     a, b = np.array([50.0, 97.5]), np.array([350.0, 97.5])  # 2 px above the outer edge (99.5)
     shift = cover_edge_offset(grad, a, b, np.array([0.0, 1.0]), max_px=25.0)
     assert shift == pytest.approx(6.0, abs=1.0)
+
+
+def test_gradients_of_a_region_are_the_whole_images_inside_it():
+    """A box's gradients equal the whole image's from 4 px inside its border (σ = 1 px
+    smoothing, 3×3 Sobel), and are 0 beyond it."""
+    from rovis.segment.edges import gradients
+
+    img = cv2.GaussianBlur(np.random.default_rng(4).integers(0, 256, (240, 320), np.uint8),
+                           (0, 0), 2.0)
+    whole = gradients(img)
+    part = gradients(img, region=(40, 30, 200, 150))
+    for a, b in ((part.dx, whole.dx), (part.dy, whole.dy)):
+        assert a.shape == b.shape and a.dtype == b.dtype
+        assert np.array_equal(a[34:146, 44:196], b[34:146, 44:196])
+        assert not a[:30].any() and not a[150:].any() and not a[:, :40].any() and not a[:, 200:].any()
+    assert part.box == whole.box

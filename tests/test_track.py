@@ -63,6 +63,25 @@ def test_a_still_scene_is_followed_where_it_was_detected(still):
     assert within_1cm(detected) and within_1cm(detected) <= within_1cm(tracked)
 
 
+def test_following_reads_only_around_the_books_as_the_whole_images_would(still, monkeypatch):
+    """Tracking undistorts and differentiates only boxes around the books it follows; its
+    answer is the one the whole images give."""
+    sc, first, second, det, detected = still
+    tracked = _follow(det, first, second)
+    whole = Detector._prepare
+
+    def everywhere(self, left, right, near=None):
+        return whole(self, left, right)
+
+    monkeypatch.setattr(Detector, "_prepare", everywhere)
+    reference = _follow(det, first, second)
+    assert tracked is not None and reference is not None
+    assert len(tracked.objects) == len(reference.objects)
+    for a, b in zip(tracked.objects, reference.objects):
+        assert np.array_equal(a.corners_world, b.corners_world)
+        assert np.array_equal(a.corners_left_px, b.corners_left_px)
+
+
 def test_a_book_taken_away_or_moved_is_noticed(still):
     sc, first, _, det, _ = still
     gone = render(replace(sc, books=sc.books[1:]), 13)

@@ -106,3 +106,18 @@ def test_overlays_draw_the_lines_of_the_whole_field_of_view():
     raw = polylines[0]
     assert raw[:, 0].max() < 40 and raw[:, 1].max() - raw[:, 1].min() > 200
     assert np.all((raw >= 0) & (raw <= [639, 479]))
+
+
+def test_a_region_is_undistorted_as_the_whole_image_is():
+    """Tracking undistorts only around the books it follows: those pixels are the whole
+    image's, the rest black."""
+    rig = make_rig(**WIDE)
+    view = IdealView.of(rig)
+    raw = np.random.default_rng(3).integers(0, 256, (480, 640), dtype=np.uint8)
+    whole = view.undistort(raw, "right")
+    box = (100, 80, 420, 300)
+    part = view.undistort(raw, "right", box)
+    assert part.shape == whole.shape
+    assert np.array_equal(part[80:300, 100:420], whole[80:300, 100:420])
+    part[80:300, 100:420] = 0
+    assert not part.any()

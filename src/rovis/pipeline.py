@@ -482,7 +482,20 @@ class Detector:
         """
         if self._tracks is None or not self._tracks[0]:
             return None
-        f = self._prepare(left, right)
+        # the images are undistorted and differentiated only around the books followed:
+        # a side is measured within window_px of where it was, a corner moves at most four
+        # windows, and the smoothing and Sobel reach 4 px (edges.gradients' region); 16 px
+        # to spare
+        pad = 5 * self.cfg.track.window_px + 16
+        near = {}
+        for cam in ("left", "right"):
+            px = np.concatenate([book.corners_left_px if cam == "left" else book.corners_right_px
+                                 for _, book, _ in self._tracks[0]])
+            w, h = self._view.size
+            x0, y0 = np.floor(px.min(axis=0) - pad).astype(int)
+            x1, y1 = np.ceil(px.max(axis=0) + pad).astype(int)
+            near[cam] = (max(int(x0), 0), max(int(y0), 0), min(int(x1), w), min(int(y1), h))
+        f = self._prepare(left, right, near)
         if f.desk_plane is None:
             return None
         previous, info = self._tracks
@@ -513,9 +526,11 @@ class Detector:
         return self._result(f, found, info, tracked=True,
                             covers={cam: np.array(c).reshape(-1, 4, 2) for cam, c in covers.items()})
 
-    def _prepare(self, left: NDArray[np.generic], right: NDArray[np.generic]) -> _Frame:
+    def _prepare(self, left: NDArray[np.generic], right: NDArray[np.generic],
+                 near: dict[str, tuple[int, int, int, int]] | None = None) -> _Frame:
         """Steps 1–2 of Fig. 2 and the gradients: the marker (world frame, desk plane, ROI),
-        both images undistorted and their Sobel gradients inside the ROI."""
+        both images undistorted and their Sobel gradients inside the ROI; with ``near``,
+        per camera a box (x0, y0, x1, y1) of ideal pixels, only in it (black, 0 beyond)."""
         f = _Frame()
         gray = {"left": to_gray_u8(left, "left image"), "right": to_gray_u8(right, "right image")}
         self._check_sizes(gray["left"], gray["right"])
@@ -542,16 +557,18 @@ class Detector:
         # from here on pixels are that frame's, and ``f.rig`` the rig whose Q_L, Q_R give them
         view = self._view
         f.raw_rig, f.rig = rig, self._view_rig(rig)
-        f.ideal = {cam: view.undistort(gray[cam], cam) for cam in gray}
+        f.ideal = {cam: view.undistort(gray[cam], cam, None if near is None else near[cam])
+                   for cam in gray}
         f.lap("undistort")
         for cam in ("left", "right"):
             mask = self._roi_mask(f.raw_rig, cam, T_world_marker)
-            grad = gradients(f.ideal[cam], mask)
+            grad = gradients(f.ideal[cam], mask, region=None if near is None else near[cam])
             if view.grown:
                 # the black beyond the raw image's border is no edge to refine onto, and a
                 # side running there is out of view
+                x0, y0, x1, y1 = (0, 0, *view.size) if near is None else near[cam]
                 for g in (grad.dx, grad.dy):
-                    cv2.bitwise_and(g, g, dst=g, mask=view.valid[cam])
+                    g[y0:y1, x0:x1][view.valid[cam][y0:y1, x0:x1] == 0] = 0
                 grad = replace(grad, seen=view.valid[cam])
             f.grads[cam] = grad
         f.lap("gradients")

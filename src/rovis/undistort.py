@@ -130,9 +130,20 @@ class IdealView:
         canvas, or a pincushion lens's corners): then :attr:`valid` matters."""
         return bool(np.any(self.offset != 0)) or not all(v.all() for v in self.valid.values())
 
-    def undistort(self, raw: NDArray[np.uint8], camera: Camera) -> NDArray[np.uint8]:
-        """The ideal image of one raw image (bilinear; black outside the raw image)."""
-        return cv2.remap(raw, *self.maps[camera], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+    def undistort(self, raw: NDArray[np.uint8], camera: Camera,
+                  region: tuple[int, int, int, int] | None = None) -> NDArray[np.uint8]:
+        """The ideal image of one raw image (bilinear; black outside the raw image).
+
+        ``region`` ``(x0, y0, x1, y1)``: only those ideal pixels are computed, the rest
+        left black (each ideal pixel is its own lookup, so those are the whole image's)."""
+        if region is None:
+            return cv2.remap(raw, *self.maps[camera], cv2.INTER_LINEAR,
+                             borderMode=cv2.BORDER_CONSTANT)
+        x0, y0, x1, y1 = region
+        out = np.zeros((self.size[1], self.size[0]), dtype=raw.dtype)
+        out[y0:y1, x0:x1] = cv2.remap(raw, *(m[y0:y1, x0:x1] for m in self.maps[camera]),
+                                      cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+        return out
 
     def rig(self, rig: StereoRig) -> StereoRig:
         """``rig`` with its camera matrices' principal points moved by :attr:`offset` and the

@@ -60,7 +60,7 @@ class Gradients:
 
 
 def gradients(gray: NDArray[np.uint8], mask: NDArray[np.uint8] | None = None, *,
-              sigma: float = 1.0) -> Gradients:
+              sigma: float = 1.0, region: tuple[int, int, int, int] | None = None) -> Gradients:
     """Smooth lightly and take 3×3 Sobel derivatives (computed once per image).
 
     Parameters
@@ -70,12 +70,27 @@ def gradients(gray: NDArray[np.uint8], mask: NDArray[np.uint8] | None = None, *,
         ROI, non-zero inside.
     sigma : float
         Gaussian pre-smoothing, pixels (Canny's own first step; 0 disables).
+    region : (x0, y0, x1, y1), optional
+        Only this box is differentiated, 0 elsewhere, for a caller that samples only well
+        inside it: within 3σ + 1 px of its border (4 px at σ = 1) the smoothing and the
+        Sobel kernel see the box's border, not the image beyond.
     """
     if gray.ndim != 2 or gray.dtype != np.uint8:
         raise ValueError(f"gray: expected a 2-D uint8 image, got {gray.dtype} {gray.shape}")
     if mask is not None and mask.shape != gray.shape:
         raise ValueError(f"mask: expected shape {gray.shape}, got {mask.shape}")
-    return _sobel(gray, mask, sigma, cv2.CV_16S)
+    if region is None:
+        return _sobel(gray, mask, sigma, cv2.CV_16S)
+    x0, y0, x1, y1 = region
+    part = _sobel(gray[y0:y1, x0:x1], None, sigma, cv2.CV_16S)
+    dx, dy = (np.zeros(gray.shape, np.int16) for _ in range(2))
+    dx[y0:y1, x0:x1], dy[y0:y1, x0:x1] = part.dx, part.dy
+    h, w = gray.shape
+    box = (0, 0, w, h)
+    if mask is not None:
+        x, y, bw, bh = cv2.boundingRect(mask)
+        box = (x, y, x + bw, y + bh)
+    return Gradients(dx=dx, dy=dy, mask=mask, box=box)
 
 
 def linear_gradients(gray: NDArray[np.uint8], mask: NDArray[np.uint8] | None = None, *,
