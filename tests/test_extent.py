@@ -415,6 +415,76 @@ def test_sides_both_images_agree_on_stay(lone_book):
     assert extent.settle_facing_sides(truth, Q, grads, desk) is None
 
 
+# -- a side on its page block's foot in both images, lifted (extent.lift_foot)
+
+def _side_on_its_foot(P, Q, s):
+    """The projection by ``Q`` of cover ``P`` (4, 3) with side ``s`` taken at its page
+    block's foot (dropped onto the desk, z = 0), the sides beside it followed there."""
+    from rovis.segment.lines import intersect
+
+    q = geometry.project(Q, P)
+    a, b = s, (s + 1) % 4
+    foot = geometry.project(Q, P[[a, b]] * [1.0, 1.0, 0.0])
+    d_foot = (foot[1] - foot[0]) / np.linalg.norm(foot[1] - foot[0])
+    out = q.copy()
+    for k, other in ((a, (a - 1) % 4), (b, (b + 1) % 4)):
+        lateral = (q[k] - q[other]) / np.linalg.norm(q[k] - q[other])
+        out[k] = intersect(foot[0], d_foot, q[other], lateral)
+    return out
+
+
+def test_a_side_on_its_foot_in_both_images_is_lifted_to_the_cover():
+    """A book 3 cm thick whose short side, its page block showing, both images took at the
+    block's foot: its corners there triangulate near the desk (a tilted cover); lifted,
+    the cover is back within millimetres."""
+    book = Book(center=(0.60, 0.33, 0.03), yaw_deg=20.0, size=(0.22, 0.15, 0.03),
+                cover=CoverSpec(kind="plain", albedo=0.5, seed=1))
+    r, grads, Q, _ = _rendered([book])
+    P = np.array(r.truth["books"][0]["corners"])
+    desk = np.asarray(r.truth["desk_plane"])
+    up = desk[:3] / np.linalg.norm(desk[:3])
+    s = next(k for k in (0, 2) if extent._block_shows(P, k, Q, -0.03 * up))  # a short side
+    corners = {cam: _side_on_its_foot(P, Q[cam], s) for cam in Q}
+    before = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
+    h = geometry.plane_distance(desk, before)
+    assert h[[s, (s + 1) % 4]].max() < 0.01 and h.max() > 0.025  # tilted, metres
+    got = extent.lift_foot(corners, Q, grads, before, desk)
+    assert got is not None
+    assert np.linalg.norm(got - P, axis=1).max() < 0.003  # metres, every corner
+    # a cover triangulated whole has no side on the desk: nothing to lift
+    whole = {cam: geometry.project(Q[cam], P) for cam in Q}
+    assert extent.lift_foot(whole, Q, grads, P, desk) is None
+    # nor does a side whose page block no image shows (its foot is hidden)
+    hidden = next(k for k in (0, 2) if k != s)
+    corners = {cam: _side_on_its_foot(P, Q[cam], hidden) for cam in Q}
+    before = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
+    assert extent.lift_foot(corners, Q, grads, before, desk) is None
+
+
+def test_a_sheet_on_the_desk_is_not_lifted_into_a_book():
+    """A paper on the desk paired with its far side a centimetre too high (the corners
+    triangulate tilted): its far edge, placed by stereo, lies on the desk, so no cover is
+    made of it."""
+    from rovis.synth.scene import Paper
+
+    sc = sample_scene(3, lux=500.0, n_books=0)
+    paper = Paper(center=(0.45, 0.33), yaw_deg=20.0, size=(0.21, 0.15), seed=2)
+    sc = replace(sc, books=(), papers=(paper,), mugs=(), pens=(), cables=())
+    r = render(sc, 3)
+    grads = {cam: gradients(img) for cam, img in ideal_images(sc.rig, r).items()}
+    Q = {"left": sc.rig.Q_L, "right": sc.rig.Q_R}
+    desk = np.asarray(r.truth["desk_plane"])
+    flat = np.column_stack([paper.footprint(), np.zeros(4)])
+    _, s = _with_near_side_on_its_foot(flat + [0, 0, 0.01], Q["left"])  # the near side
+    tilted = flat.copy()
+    tilted[[(s + 2) % 4, (s + 3) % 4], 2] = 0.012  # the far side read 12 mm up
+    corners = {cam: geometry.project(Q[cam], tilted) for cam in Q}
+    assert extent.lift_foot(corners, Q, grads, tilted, desk) is None
+    # the check that refuses it: without the gradients the lift would place a book
+    blank = {cam: gradients(np.zeros_like(img)) for cam, img in ideal_images(sc.rig, r).items()}
+    assert extent.lift_foot(corners, Q, blank, tilted, desk) is not None
+
+
 # -- the cover's height from its sides' edges (extent.height_from_sides)
 
 

@@ -896,3 +896,85 @@ def _place(h: float, corners: dict[str, NDArray[np.float64]],
             offset[s] = o[k, s]
             total += float(full[k])
     return corners_at(offset[None])[0], total
+
+
+def lift_foot(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],
+              grads: dict[str, Gradients], P: NDArray[np.float64],
+              desk_plane: NDArray[np.float64], *, min_height: float = 0.006,
+              low_ratio: float = 0.3, agree: float = 0.004, max_sigma: float = 0.004,
+              ) -> NDArray[np.float64] | None:
+    """A cover one side of which both images took on the foot of its page block, lifted.
+
+    Beyond the paper. Where a book's page block shows below a side, its foot on the desk is
+    an edge as strong as the cover's own, a pixel or two beyond it: with that side on the
+    foot in both images, its corners triangulate near the desk and the cover tilts. A book
+    is a cuboid: its cover's edge lies straight above the foot. The side (``P``'s lowest,
+    its mean height at most ``low_ratio`` of the opposite side's, which stands at
+    ``min_height`` or more) is back-projected onto the desk in each image; the two must
+    agree (their ends within ``agree`` metres of the other's line), and lifted to the
+    opposite side's height it closes the cover there, with the other three sides
+    back-projected onto that plane (each image's, averaged). The page block below the
+    side must show in one image at least (else its foot is hidden), and each of the
+    three other sides that stereo places on its own (:func:`_edge_height`, to within
+    ``max_sigma``) must stand at half that height or more: a sheet on the desk whose
+    corners triangulate a centimetre apart is no book.
+
+    Parameters
+    ----------
+    corners : dict camera -> ndarray, shape (4, 2)
+        The pair's corners in each ideal image, the same physical corner at each index.
+    Q : dict camera -> ndarray, shape (3, 4)
+    P : ndarray, shape (4, 3)
+        The corners triangulated (world, metres).
+    desk_plane : ndarray, shape (4,)
+
+    Returns
+    -------
+    ndarray, shape (4, 3) or None
+        The cover's corners in the order of ``corners``, or None where no side is such a
+        foot.
+    """
+    h = geometry.plane_distance(desk_plane, P)
+    side_h = 0.5 * (h + np.roll(h, -1))  # side s from corner s to s + 1
+    s = int(np.argmin(side_h))
+    top = float(side_h[(s + 2) % 4])
+    if not (top >= min_height and side_h[s] <= low_ratio * top):
+        return None
+    cams = ("left", "right")
+    on_desk, up, e1, e2 = _plane_frame(desk_plane)
+
+    def line(k: int, height: float) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        # side k back-projected onto the plane at ``height`` in each image, the mean of
+        # the two (plane coordinates: a point and a unit direction)
+        ends = []
+        for cam in cams:
+            X = on_plane(Q[cam], corners[cam][[k, (k + 1) % 4]], desk_plane, height) - on_desk
+            ends.append(np.column_stack([X @ e1, X @ e2]))
+        if height == 0.0:
+            for a, b in ((0, 1), (1, 0)):  # the images' feet on one line
+                d = _unit(ends[b][1] - ends[b][0])
+                normal = np.array([-d[1], d[0]])
+                if np.abs((ends[a] - ends[b][0]) @ normal).max() > agree:
+                    return None
+        mid = 0.5 * (ends[0] + ends[1])
+        return 0.5 * (mid[0] + mid[1]), _unit(mid[1] - mid[0])
+
+    foot = line(s, 0.0)
+    if foot is None:
+        return None
+    sides = {s: foot}
+    for k in (s + 1, s + 2, s + 3):
+        sides[k % 4] = line(k % 4, top)
+    out = np.empty((4, 3))
+    for c in range(4):  # corner c joins side c - 1 and side c
+        x = intersect(*sides[(c - 1) % 4], *sides[c])  # type: ignore[misc]
+        if x is None:
+            return None
+        out[c] = on_desk + top * up + x[0] * e1 + x[1] * e2
+    if not _block_shows(out, s, Q, -top * up):
+        return None  # the block below the side is hidden: its foot is seen in neither image
+    for k in (s + 1, s + 2, s + 3):
+        z, sigma = _edge_height(out, k % 4, Q, grads, up)
+        if sigma <= max_sigma and top + z < 0.5 * top:
+            return None
+    return out

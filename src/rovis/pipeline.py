@@ -30,7 +30,7 @@ from rovis import geometry, marker
 from rovis.calib import StereoRig
 from rovis.extent import (CompleteConfig, ExtentConfig, FacingConfig, SideHeightConfig,
                           _foot_is_edge, _grow_side, _moved, _on_desk, _side_scores,
-                          complete_open, fit_pair_extent, height_from_sides,
+                          complete_open, fit_pair_extent, height_from_sides, lift_foot,
                           settle_facing_sides)
 from rovis.heightmap import (HeightMap, HeightMapConfig, height_map, raised_covers,
                              smooth_height_map, snap_sides)
@@ -106,6 +106,11 @@ class DetectConfig:
     fit_rectangle : bool
         Replace the four separately triangulated corners by one 3D rectangle fitted to both
         images' corners (:func:`rovis.geometry.fit_rectangle`; beyond the paper).
+    lift_foot : bool
+        A pair that fails as tilted (or with a side on the desk) where no book is found
+        by then, one side of it the foot of its page block in both images, is lifted to
+        the cover's height (:func:`rovis.extent.lift_foot`; beyond the paper; needs the
+        desk plane).
     flat_refit_px : float
         Pixels; 0 turns it off. A stereo pair that comes out tilted or with a side on the
         desk is refit as one rectangle parallel to the desk, kept where every corner of
@@ -150,6 +155,7 @@ class DetectConfig:
     max_cover_side: float = 0.45
     min_cover_side: float = 0.06
     fit_rectangle: bool = False
+    lift_foot: bool = True
     flat_refit_px: float = 1.0
     full_view: bool = True
     segment: SegmentConfig = field(default_factory=SegmentConfig)
@@ -408,6 +414,11 @@ class Detector:
             maps = self._height_maps(rig, grads, desk_plane, texture, ideal)
             found += self._from_height_map(rig, grads, found, desk_plane, texture, maps)
             lap("heightmap")
+        if self.cfg.lift_foot and desk_plane is not None:
+            # beyond the paper: a pair that tilts because one side is its page block's
+            # foot in both images, where nothing else found a book, lifted
+            found += self._lifted(rig, grads, books, found, desk_plane, texture)
+            lap("pose")
         # a failed pair whose quad became a book through the one-image search is not lost
         dropped = [(why, pair.left, pair.right) for pair, book, why in books
                    if book is None and not any(
@@ -941,6 +952,37 @@ class Detector:
             taken["left"].append(pair.left)
             taken["right"].append(pair.right)
             out.append((pair, book))
+        return out
+
+    def _lifted(self, rig: StereoRig, grads: dict[str, Gradients],
+                books: list[tuple[Pair, BookDetection | None, str]],
+                found: list[tuple[Pair, BookDetection]], desk_plane: NDArray[np.float64],
+                texture: dict[str, NDArray[np.float32]] | None,
+                ) -> list[tuple[Pair, BookDetection]]:
+        """Books from the pairs that failed as tilted, or with a side on the desk, where no
+        book is yet: one side taken for the foot of its page block and lifted to the
+        cover's height (:func:`rovis.extent.lift_foot`), the cover then passing every check."""
+        overlap = self.cfg.stereo.transfer_max_overlap
+        taken = [p.left for p, _ in found]
+        out: list[tuple[Pair, BookDetection]] = []
+        for pair, book, why in books:
+            if book is not None or why not in ("tilted", "side on desk") \
+                    or any(quad_overlap(pair.left, t) > overlap for t in taken):
+                continue
+            P = geometry.triangulate(rig.Q_L, rig.Q_R, pair.left, pair.right,
+                                     method=self.cfg.triangulation)
+            lifted = lift_foot({"left": pair.left, "right": pair.right},
+                               {"left": rig.Q_L, "right": rig.Q_R}, grads, P, desk_plane,
+                               min_height=self.cfg.stereo.min_height)
+            if lifted is None:
+                continue
+            moved, made, _ = self._reconstruct_or_why(
+                rig, replace(pair, left=geometry.project(rig.Q_L, lifted),
+                             right=geometry.project(rig.Q_R, lifted)), desk_plane, texture)
+            if made is None or any(quad_overlap(moved.left, t) > overlap for t in taken):
+                continue
+            taken.append(moved.left)
+            out.append((moved, made))
         return out
 
     def _print_on_desk(self, rig: StereoRig, c_left: NDArray[np.float64],
