@@ -34,6 +34,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the height map", ["heightmap.enabled=false"]),
     ("the smooth height map (covers without print)", ["heightmap.smooth=false"]),
     ("the facing sides' edge", ["facing.enabled=false"]),
+    ("a side on its foot, lifted", ["lift_foot=false"]),
     ("the height from the sides", ["side_height.enabled=false"]),
     ("the extent step", ["extent.grow=false", "extent.shrink=false"]),
     ("the split of touching books", ["split.enabled=false"]),

@@ -901,16 +901,16 @@ def _place(h: float, corners: dict[str, NDArray[np.float64]],
 def lift_foot(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],
               grads: dict[str, Gradients], P: NDArray[np.float64],
               desk_plane: NDArray[np.float64], *, min_height: float = 0.006,
-              low_ratio: float = 0.3, agree: float = 0.004, max_sigma: float = 0.004,
-              ) -> NDArray[np.float64] | None:
+              max_height: float = 0.10, low_ratio: float = 0.3, agree: float = 0.004,
+              max_sigma: float = 0.004) -> NDArray[np.float64] | None:
     """A cover one side of which both images took on the foot of its page block, lifted.
 
     Beyond the paper. Where a book's page block shows below a side, its foot on the desk is
     an edge as strong as the cover's own, a pixel or two beyond it: with that side on the
     foot in both images, its corners triangulate near the desk and the cover tilts. A book
     is a cuboid: its cover's edge lies straight above the foot. The side (``P``'s lowest,
-    its mean height at most ``low_ratio`` of the opposite side's, which stands at
-    ``min_height`` or more) is back-projected onto the desk in each image; the two must
+    its mean height at most ``low_ratio`` of the opposite side's, which stands between
+    ``min_height`` and ``max_height``) is back-projected onto the desk in each image; the two must
     agree (their ends within ``agree`` metres of the other's line), and lifted to the
     opposite side's height it closes the cover there, with the other three sides
     back-projected onto that plane (each image's, averaged). The page block below the
@@ -938,7 +938,7 @@ def lift_foot(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.f
     side_h = 0.5 * (h + np.roll(h, -1))  # side s from corner s to s + 1
     s = int(np.argmin(side_h))
     top = float(side_h[(s + 2) % 4])
-    if not (top >= min_height and side_h[s] <= low_ratio * top):
+    if not (min_height <= top <= max_height and side_h[s] <= low_ratio * top):
         return None
     cams = ("left", "right")
     on_desk, up, e1, e2 = _plane_frame(desk_plane)

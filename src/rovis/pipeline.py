@@ -973,7 +973,8 @@ class Detector:
                                      method=self.cfg.triangulation)
             lifted = lift_foot({"left": pair.left, "right": pair.right},
                                {"left": rig.Q_L, "right": rig.Q_R}, grads, P, desk_plane,
-                               min_height=self.cfg.stereo.min_height)
+                               min_height=self.cfg.stereo.min_height,
+                               max_height=self.cfg.stereo.max_cover_height)
             if lifted is None:
                 continue
             moved, made, _ = self._reconstruct_or_why(
