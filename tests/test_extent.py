@@ -456,6 +456,7 @@ def test_a_side_on_its_foot_in_both_images_is_lifted_to_the_cover():
     assert extent.lift_foot(whole, Q, grads, P, desk) is None
     # nor does a side whose page block no image shows (its foot is hidden)
     hidden = next(k for k in (0, 2) if k != s)
+    assert not extent._block_shows(P, hidden, Q, -0.03 * up)
     corners = {cam: _side_on_its_foot(P, Q[cam], hidden) for cam in Q}
     before = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
     assert extent.lift_foot(corners, Q, grads, before, desk) is None

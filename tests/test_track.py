@@ -67,8 +67,20 @@ def test_following_reads_only_around_the_books_as_the_whole_images_would(still, 
     """Tracking undistorts and differentiates only boxes around the books it follows; its
     answer is the one the whole images give."""
     sc, first, second, det, detected = still
-    tracked = _follow(det, first, second)
     whole = Detector._prepare
+    boxes = []
+
+    def recorded(self, left, right, near=None):
+        boxes.append(near)
+        return whole(self, left, right, near)
+
+    monkeypatch.setattr(Detector, "_prepare", recorded)
+    tracked = _follow(det, first, second)
+    w, h = det._view.size
+    box = boxes[-1]  # the track's, after the detection's (None: the whole images)
+    assert boxes[0] is None and box is not None
+    for x0, y0, x1, y1 in box.values():  # a part of each image only
+        assert 0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h and (x1 - x0) * (y1 - y0) < 0.8 * w * h
 
     def everywhere(self, left, right, near=None):
         return whole(self, left, right)

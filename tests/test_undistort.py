@@ -121,3 +121,26 @@ def test_a_region_is_undistorted_as_the_whole_image_is():
     assert np.array_equal(part[80:300, 100:420], whole[80:300, 100:420])
     part[80:300, 100:420] = 0
     assert not part.any()
+
+    with pytest.raises(ValueError, match="region"):
+        view.undistort(raw, "right", (100, 80, 100, 300))  # empty
+    with pytest.raises(ValueError, match="region"):
+        view.undistort(raw, "right", (-5, 80, 420, 300))
+
+
+def test_gradients_beyond_the_raw_field_of_view_are_zero():
+    """The black beyond a wide lens's raw image is no edge: the detector's gradients are 0
+    wherever the grown ideal frame shows nothing of the raw image."""
+    from rovis.pipeline import Detector
+
+    rig = make_rig(**WIDE)
+    det = Detector(rig)
+    raw = np.full((480, 640), 180, np.uint8)
+    f = det._prepare(raw, raw)
+    for cam in ("left", "right"):
+        outside = det._view.valid[cam] == 0
+        assert outside.any()
+        assert not f.grads[cam].dx[outside].any() and not f.grads[cam].dy[outside].any()
+    # ...where the undistorted image does step, from the raw image's 180 to black
+    assert f.ideal["left"][det._view.valid["left"] > 0].min() > 150
+    assert f.ideal["left"][0, 0] == 0

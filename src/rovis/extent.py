@@ -924,9 +924,21 @@ def lift_foot(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.f
     corners : dict camera -> ndarray, shape (4, 2)
         The pair's corners in each ideal image, the same physical corner at each index.
     Q : dict camera -> ndarray, shape (3, 4)
+    grads : dict camera -> Gradients
+        Both ideal images' gradients, for the other sides' heights.
     P : ndarray, shape (4, 3)
         The corners triangulated (world, metres).
     desk_plane : ndarray, shape (4,)
+    min_height, max_height : float
+        Metres: the range of the cover's height (the opposite side's).
+    low_ratio : float
+        The foot side's mean height, at most this share of the opposite side's.
+    agree : float
+        Metres: the two images' feet on the desk, each one's ends this near the other's
+        line.
+    max_sigma : float
+        Metres: a side's stereo height (:func:`_edge_height`) counts where its standard
+        deviation is at most this.
 
     Returns
     -------
@@ -943,31 +955,30 @@ def lift_foot(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.f
     cams = ("left", "right")
     on_desk, up, e1, e2 = _plane_frame(desk_plane)
 
-    def line(k: int, height: float) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
-        # side k back-projected onto the plane at ``height`` in each image, the mean of
-        # the two (plane coordinates: a point and a unit direction)
-        ends = []
+    def ends(k: int, height: float) -> list[NDArray[np.float64]]:
+        # side k's ends back-projected onto the plane at ``height``, each image's (plane
+        # coordinates, (2, 2) each)
+        out = []
         for cam in cams:
             X = on_plane(Q[cam], corners[cam][[k, (k + 1) % 4]], desk_plane, height) - on_desk
-            ends.append(np.column_stack([X @ e1, X @ e2]))
-        if height == 0.0:
-            for a, b in ((0, 1), (1, 0)):  # the images' feet on one line
-                d = _unit(ends[b][1] - ends[b][0])
-                normal = np.array([-d[1], d[0]])
-                if np.abs((ends[a] - ends[b][0]) @ normal).max() > agree:
-                    return None
-        mid = 0.5 * (ends[0] + ends[1])
+            out.append(np.column_stack([X @ e1, X @ e2]))
+        return out
+
+    def line(e: list[NDArray[np.float64]]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        mid = 0.5 * (e[0] + e[1])  # the two images' mean: a point and a unit direction
         return 0.5 * (mid[0] + mid[1]), _unit(mid[1] - mid[0])
 
-    foot = line(s, 0.0)
-    if foot is None:
-        return None
-    sides = {s: foot}
+    feet = ends(s, 0.0)
+    for a, b in ((0, 1), (1, 0)):  # the images' feet on one line of the desk
+        d = _unit(feet[b][1] - feet[b][0])
+        if np.abs((feet[a] - feet[b][0]) @ np.array([-d[1], d[0]])).max() > agree:
+            return None
+    sides = {s: line(feet)}
     for k in (s + 1, s + 2, s + 3):
-        sides[k % 4] = line(k % 4, top)
+        sides[k % 4] = line(ends(k % 4, top))
     out = np.empty((4, 3))
     for c in range(4):  # corner c joins side c - 1 and side c
-        x = intersect(*sides[(c - 1) % 4], *sides[c])  # type: ignore[misc]
+        x = intersect(*sides[(c - 1) % 4], *sides[c])
         if x is None:
             return None
         out[c] = on_desk + top * up + x[0] * e1 + x[1] * e2

@@ -7,7 +7,7 @@ frame ``a``; points are rows, ``(N, 3)``; metres and radians inside, degrees at 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -485,6 +485,7 @@ def fit_rectangle(Q_L: ArrayLike, Q_R: ArrayLike, px_left: ArrayLike, px_right: 
         x0 = np.concatenate([Rotation.from_matrix(pose.R).as_rotvec(), pose.center,
                              pose.size[:2]])
         scale = np.r_[[0.01] * 3, [0.001] * 3, [0.001] * 2]
+        jac: Any = "2-point"
     else:
         n = np.asarray(desk_plane, dtype=np.float64)[:3]
         n = n / np.linalg.norm(n)
@@ -521,12 +522,13 @@ def fit_rectangle(Q_L: ArrayLike, Q_R: ArrayLike, px_left: ArrayLike, px_right: 
             dP[:, :, 5] = 0.5 * signs[:, 1:] * yd
             return _projection_jacobian(rectangle(x), dP, Q_L, Q_R)
 
+        jac = jacobian
+
     def residuals(x: NDArray[np.float64]) -> NDArray[np.float64]:
         P = rectangle(x)
         return np.concatenate([(project(Q_L, P) - pl).ravel(), (project(Q_R, P) - pr).ravel()])
 
-    sol = least_squares(residuals, x0, jac="2-point" if desk_plane is None else jacobian,
-                        method="lm", x_scale=scale)
+    sol = least_squares(residuals, x0, jac=jac, method="lm", x_scale=scale)
     return rectangle(sol.x)
 
 

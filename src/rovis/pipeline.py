@@ -498,14 +498,16 @@ class Detector:
         # windows, and the smoothing and Sobel reach 4 px (edges.gradients' region); 16 px
         # to spare
         pad = 5 * self.cfg.track.window_px + 16
-        near = {}
+        w, h = self._view.size
+        near: dict[str, tuple[int, int, int, int]] = {}
         for cam in ("left", "right"):
             px = np.concatenate([book.corners_left_px if cam == "left" else book.corners_right_px
                                  for _, book, _ in self._tracks[0]])
-            w, h = self._view.size
-            x0, y0 = np.floor(px.min(axis=0) - pad).astype(int)
-            x1, y1 = np.ceil(px.max(axis=0) + pad).astype(int)
-            near[cam] = (max(int(x0), 0), max(int(y0), 0), min(int(x1), w), min(int(y1), h))
+            x0, y0 = np.clip(np.floor(px.min(axis=0) - pad), 0, [w, h]).astype(int)
+            x1, y1 = np.clip(np.ceil(px.max(axis=0) + pad), 0, [w, h]).astype(int)
+            if x1 <= x0 or y1 <= y0:
+                return None  # the books are out of view: detect afresh
+            near[cam] = (int(x0), int(y0), int(x1), int(y1))
         f = self._prepare(left, right, near)
         if f.desk_plane is None:
             return None

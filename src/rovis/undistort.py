@@ -139,7 +139,10 @@ class IdealView:
         if region is None:
             return cv2.remap(raw, *self.maps[camera], cv2.INTER_LINEAR,
                              borderMode=cv2.BORDER_CONSTANT)
-        x0, y0, x1, y1 = region
+        x0, y0, x1, y1 = (int(v) for v in region)
+        if not (0 <= x0 < x1 <= self.size[0] and 0 <= y0 < y1 <= self.size[1]):
+            raise ValueError(f"region: expected 0 <= x0 < x1 <= {self.size[0]} and "
+                             f"0 <= y0 < y1 <= {self.size[1]}, got {tuple(region)}")
         out = np.zeros((self.size[1], self.size[0]), dtype=raw.dtype)
         out[y0:y1, x0:x1] = cv2.remap(raw, *(m[y0:y1, x0:x1] for m in self.maps[camera]),
                                       cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)

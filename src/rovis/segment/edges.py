@@ -81,16 +81,31 @@ def gradients(gray: NDArray[np.uint8], mask: NDArray[np.uint8] | None = None, *,
         raise ValueError(f"mask: expected shape {gray.shape}, got {mask.shape}")
     if region is None:
         return _sobel(gray, mask, sigma, cv2.CV_16S)
-    x0, y0, x1, y1 = region
+    x0, y0, x1, y1 = _check_region(region, gray.shape)
     part = _sobel(gray[y0:y1, x0:x1], None, sigma, cv2.CV_16S)
     dx, dy = (np.zeros(gray.shape, np.int16) for _ in range(2))
     dx[y0:y1, x0:x1], dy[y0:y1, x0:x1] = part.dx, part.dy
-    h, w = gray.shape
-    box = (0, 0, w, h)
-    if mask is not None:
-        x, y, bw, bh = cv2.boundingRect(mask)
-        box = (x, y, x + bw, y + bh)
-    return Gradients(dx=dx, dy=dy, mask=mask, box=box)
+    return Gradients(dx=dx, dy=dy, mask=mask, box=_box(mask, gray.shape))
+
+
+def _check_region(region: tuple[int, int, int, int],
+                  shape: tuple[int, ...]) -> tuple[int, int, int, int]:
+    """``region`` (x0, y0, x1, y1) as ints, or ValueError unless 0 <= x0 < x1 <= W and
+    0 <= y0 < y1 <= H for an image of ``shape`` (H, W)."""
+    x0, y0, x1, y1 = (int(v) for v in region)
+    h, w = shape[:2]
+    if not (0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h):
+        raise ValueError(f"region: expected 0 <= x0 < x1 <= {w} and 0 <= y0 < y1 <= {h}, "
+                         f"got {tuple(region)}")
+    return x0, y0, x1, y1
+
+
+def _box(mask: NDArray[np.uint8] | None, shape: tuple[int, ...]) -> tuple[int, int, int, int]:
+    """The ROI's bounding box (x0, y0, x1, y1): the whole image of ``shape`` without a mask."""
+    if mask is None:
+        return (0, 0, shape[1], shape[0])
+    x, y, bw, bh = cv2.boundingRect(mask)
+    return (x, y, x + bw, y + bh)
 
 
 def linear_gradients(gray: NDArray[np.uint8], mask: NDArray[np.uint8] | None = None, *,
@@ -128,12 +143,7 @@ def _sobel(img: NDArray[np.generic], mask: NDArray[np.uint8] | None, sigma: floa
         img = cv2.GaussianBlur(img, (0, 0), sigma)
     dx = cv2.Sobel(img, ddepth, 1, 0, ksize=3)
     dy = cv2.Sobel(img, ddepth, 0, 1, ksize=3)
-    h, w = img.shape[:2]
-    box = (0, 0, w, h)
-    if mask is not None:
-        x, y, bw, bh = cv2.boundingRect(mask)
-        box = (x, y, x + bw, y + bh)
-    return Gradients(dx=dx, dy=dy, mask=mask, box=box)
+    return Gradients(dx=dx, dy=dy, mask=mask, box=_box(mask, img.shape))
 
 
 def canny(grad: Gradients, T_H: float, T_L: float | None = None) -> NDArray[np.uint8]:
