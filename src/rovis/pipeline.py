@@ -435,8 +435,18 @@ class Detector:
             found = self._with_side_heights(rig, grads, found, desk_plane, texture)
             lap("side_height")
         if (self.cfg.extent.grow or self.cfg.extent.shrink) and desk_plane is not None:
+            earlier = [pair.left for pair, _ in found]
             found = self._fit_extents(rig, segs, grads, found, desk_plane, texture)
             lap("extent")
+            if self.cfg.stereo.pool and self.cfg.stereo.pool_again and any(
+                    max((_shared(q, pair.left) for pair, _ in found), default=0.0) < 0.75
+                    for q in earlier):
+                # a cover shrunk to its own edges (a pool pair that was two books) leaves
+                # room: the candidates are looked at again there
+                more = self._from_pool(rig, segs, grads, found, desk_plane, texture)
+                if more:
+                    found += self._fit_extents(rig, segs, grads, more, desk_plane, texture)
+                lap("stereo")
         # beyond the paper: two touching books taken for one cover, split at their seam
         # (after the extent step, which would grow each part over the other again)
         if self.cfg.split.enabled and desk_plane is not None:
@@ -1625,6 +1635,13 @@ class Detector:
             reprojection_error_px=float(reproj.mean()),
             quality=pair.quality, stereo_error_px=pair.error_px,
             source="one image" if pair.transferred else pair.source), ""
+
+
+def _shared(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+    """The share of convex quad ``a`` (4, 2) that quad ``b`` covers."""
+    inter, _ = cv2.intersectConvexConvex(a.astype(np.float32), b.astype(np.float32))
+    area = cv2.contourArea(a.astype(np.float32))
+    return float(inter) / area if area > 0 else 1.0
 
 
 def _three_sided(seg: Segmentation, k: int) -> bool:
