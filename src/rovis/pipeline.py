@@ -441,8 +441,8 @@ class Detector:
             if self.cfg.stereo.pool and self.cfg.stereo.pool_again and any(
                     max((_shared(q, pair.left) for pair, _ in found), default=0.0) < 0.75
                     for q in earlier):
-                # a cover shrunk to its own edges (a pool pair that was two books) leaves
-                # room: the candidates are looked at again there
+                # a quarter or more of a cover found before lies under none now (a pool
+                # pair that was two books, cut back to one): the candidates looked at again
                 more = self._from_pool(rig, segs, grads, found, desk_plane, texture)
                 if more:
                     found += self._fit_extents(rig, segs, grads, more, desk_plane, texture)

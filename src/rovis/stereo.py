@@ -75,9 +75,9 @@ class StereoConfig:
     # (Segmentation.pool): pairs that make a flat, book-sized rectangle (pool_pairs).
     pool: bool = True
     pool_max_pairs: int = 300  # refined per frame, the smallest epipolar error first
-    # Where the extent step shrinks a cover to a quarter or more less (a pool pair that was
-    # two touching books, cut back to one), the pool is looked at again: the other book's
-    # pair had given way to the union
+    # Where a quarter or more of a cover found before the extent step lies under no cover
+    # after it (a pool pair that was two touching books, cut back to one), the pool is
+    # looked at again: the other book's pair had given way to the union
     pool_again: bool = True
 
 
