@@ -990,8 +990,7 @@ class Detector:
             if lifted is None:
                 continue
             moved, made, _ = self._reconstruct_or_why(
-                rig, replace(pair, left=geometry.project(rig.Q_L, lifted),
-                             right=geometry.project(rig.Q_R, lifted)), desk_plane, texture)
+                rig, _pair_at(rig, pair, lifted), desk_plane, texture)
             if made is None or any(quad_overlap(moved.left, t) > overlap for t in taken):
                 continue
             taken.append(moved.left)
@@ -1066,8 +1065,7 @@ class Detector:
                 edges, C = max(trials, key=lambda t: t[0])
                 if edges >= 3:
                     moved, fitted, _ = self._reconstruct_or_why(
-                        rig, replace(pair, left=geometry.project(rig.Q_L, C),
-                                     right=geometry.project(rig.Q_R, C)), desk_plane, texture)
+                        rig, _pair_at(rig, pair, C), desk_plane, texture)
                     if fitted is not None:
                         pair, book = moved, fitted
             out.append((pair, book))
@@ -1120,9 +1118,8 @@ class Detector:
                 else:
                     break
             if moved:
-                trial = replace(pair, left=geometry.project(rig.Q_L, P),
-                                right=geometry.project(rig.Q_R, P))
-                new_pair, new_book, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
+                new_pair, new_book, _ = self._reconstruct_or_why(rig, _pair_at(rig, pair, P),
+                                                                 desk_plane, texture)
                 # (a cut narrower than a book would be dropped at the end, the cover with it)
                 if new_book is not None and min(new_book.pose.size[:2]) >= self.cfg.min_cover_side:
                     pair, book = new_pair, new_book
@@ -1388,8 +1385,7 @@ class Detector:
                 if laid is not None:
                     P = laid
                     moved, fitted, _ = self._reconstruct_or_why(
-                        rig, replace(pair, left=geometry.project(rig.Q_L, P),
-                                     right=geometry.project(rig.Q_R, P)), desk_plane, texture)
+                        rig, _pair_at(rig, pair, P), desk_plane, texture)
                     if fitted is not None:
                         pair, book = moved, fitted
             out.append((pair, book))
@@ -1426,7 +1422,7 @@ class Detector:
             P = geometry.fit_rectangle(rig.Q_L, rig.Q_R, pair.left, pair.right, P0, desk_plane)
         except ValueError:
             return None
-        flat = replace(pair, left=geometry.project(rig.Q_L, P), right=geometry.project(rig.Q_R, P))
+        flat = _pair_at(rig, pair, P)
         off = max(float(np.linalg.norm(flat.left - pair.left, axis=1).max()),
                   float(np.linalg.norm(flat.right - pair.right, axis=1).max()))
         if not np.isfinite(off) or off > self.cfg.flat_refit_px:
@@ -1616,8 +1612,7 @@ class Detector:
                 P = self._on_plane(rig, c_left, c_right, desk_plane, sweep)
                 if P is None:
                     return pair, None, "texture height"
-                pair = replace(pair, left=geometry.project(rig.Q_L, P),
-                               right=geometry.project(rig.Q_R, P))
+                pair = _pair_at(rig, pair, P)
                 c_left, c_right = pair.left, pair.right
                 try:
                     pose = geometry.pose_from_corners(P, desk_plane)
@@ -1635,6 +1630,12 @@ class Detector:
             reprojection_error_px=float(reproj.mean()),
             quality=pair.quality, stereo_error_px=pair.error_px,
             source="one image" if pair.transferred else pair.source), ""
+
+
+def _pair_at(rig: StereoRig, pair: Pair, P: NDArray[np.float64]) -> Pair:
+    """``pair`` with its corners moved to the projections of world corners ``P`` (4, 3) in
+    both ideal images (a cover placed in 3D: its images agree exactly)."""
+    return replace(pair, left=geometry.project(rig.Q_L, P), right=geometry.project(rig.Q_R, P))
 
 
 def _shared(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
