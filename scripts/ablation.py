@@ -38,6 +38,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the height from the sides", ["side_height.enabled=false"]),
     ("the extent step", ["extent.grow=false", "extent.shrink=false"]),
     ("the split of touching books", ["split.enabled=false"]),
+    ("the join of a cover's halves", ["split.join=false"]),
     ("the trim by the height map", ["trim.enabled=false"]),
     ("the height check by the height map", ["trim.map_height=false"]),
     ("the grow by the height map", ["trim.grow=false"]),

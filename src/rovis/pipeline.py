@@ -42,7 +42,7 @@ from rovis.segment.lines import Lines
 from rovis.segment.methods import METHODS, segment
 from rovis.segment.boundary import Fit, refine_quad, refine_quad_both, refine_sides, side_evidence
 from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
-from rovis.split import SplitConfig, split_union
+from rovis.split import SplitConfig, join_halves, split_union
 from rovis.track import TrackConfig, follow
 from rovis.trim import TrimConfig, cut_cover, grow_run, height_profile, map_height, trim_side
 from rovis.stereo import (Match, StereoConfig, find_in_other_view, flat_rectangle, match_quads,
@@ -447,6 +447,11 @@ class Detector:
                 if more:
                     found += self._fit_extents(rig, segs, grads, more, desk_plane, texture)
                 lap("stereo")
+        # beyond the paper: one cover found as two books, cut at a printed band, joined
+        # (after the extent step, which moves each part's outer sides to the cover's)
+        if self.cfg.split.join and desk_plane is not None:
+            found = self._joined(rig, found, desk_plane, texture)
+            lap("split")
         # beyond the paper: two touching books taken for one cover, split at their seam
         # (after the extent step, which would grow each part over the other again)
         if self.cfg.split.enabled and desk_plane is not None:
@@ -1477,6 +1482,34 @@ class Detector:
                     out += made  # type: ignore[arg-type]
                     continue
             out.append((pair, book))
+        return out
+
+    def _joined(self, rig: StereoRig, found: list[tuple[Pair, BookDetection]],
+                desk_plane: NDArray[np.float64],
+                texture: dict[str, NDArray[np.float32]] | None = None,
+                ) -> list[tuple[Pair, BookDetection]]:
+        """The books with each two that are the halves of one cover
+        (:func:`rovis.split.join_halves`) replaced by that cover, where it passes the pose
+        checks; it keeps the first half's source, ``quality`` and ``error_px``."""
+        out = list(found)
+        joined = True
+        while joined:  # a cover cut twice is joined a half at a time
+            joined = False
+            for a, b in ((a, b) for a in range(len(out)) for b in range(a + 1, len(out))):
+                U = join_halves(out[a][1].corners_world, out[b][1].corners_world, desk_plane,
+                                self.cfg.split)
+                if U is None:
+                    continue
+                trial = _pair_at(rig, out[a][0], U)
+                shift = int(np.argmin(trial.left.sum(axis=1)))  # eq. 1 order, left image
+                trial = replace(trial, left=np.roll(trial.left, -shift, axis=0),
+                                right=np.roll(trial.right, -shift, axis=0))
+                trial, book, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
+                if book is not None:
+                    out[a] = (trial, book)
+                    del out[b]
+                    joined = True
+                    break
         return out
 
     def _without_prints(self, found: list[tuple[Pair, BookDetection]], *, inside: float = 0.9,

@@ -51,6 +51,12 @@ class SplitConfig:
     height, and where both sides are measured, their halves within ``max_spread`` of each
     other's, every half within ``height_range`` above the desk (a book's). The
     ``max_seams`` strongest seams of each axis are tried, the strongest that steps kept.
+
+    The reverse (:func:`join_halves`, with ``join``): two books whose mean heights lie
+    within ``join_step`` of each other, sharing a whole side (both its ends within
+    ``join_touch``), whose outer corners make a rectangle (each angle within
+    ``join_angle_deg`` of 90°, the shared corners within ``join_touch`` of its sides), are
+    one cover cut at a printed band.
     """
 
     enabled: bool = True
@@ -64,6 +70,10 @@ class SplitConfig:
     max_spread: float = 0.004
     max_seams: int = 3
     height_range: tuple[float, float] = (0.003, 0.08)
+    join: bool = True
+    join_touch: float = 0.004
+    join_step: float = 0.003
+    join_angle_deg: float = 4.0
 
 
 def seam_profile(grad: Gradients, corners: NDArray[np.float64], k: int, t: NDArray[np.float64],
@@ -188,6 +198,70 @@ def split_union(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np
             if _step_in_height(corners, parts, k, Q, grads, up, cfg, down=down) > 0:
                 return parts
     return None
+
+
+def join_halves(A: NDArray[np.float64], B: NDArray[np.float64], desk_plane: NDArray[np.float64],
+                cfg: SplitConfig = SplitConfig()) -> NDArray[np.float64] | None:
+    """One cover from two found books that are its halves, or None.
+
+    A photo's title band or a printed stripe across a cover is a step as clear as the
+    cover's own edge: the segmentation may find the two parts either side of it as two
+    covers, and stereo places both at the cover's height. Two books that are halves of one
+    lie at one height (within ``cfg.join_step``), share a whole side (both its ends
+    within ``cfg.join_touch``) and together make a rectangle (each corner's angle within
+    ``cfg.join_angle_deg`` of 90°, the shared side's ends within ``cfg.join_touch`` of the
+    union's sides: no kink where the parts meet). Two books of one height and one size,
+    laid flush and aligned, pass these tests too (:func:`split_union` cannot tell them from
+    a band either).
+
+    Parameters
+    ----------
+    A, B : ndarray, shape (4, 3)
+        The two covers' world corners, each in cyclic order (metres).
+    desk_plane : ndarray, shape (4,)
+        ``[nx, ny, nz, d]`` (world, normal up).
+    cfg : SplitConfig
+
+    Returns
+    -------
+    ndarray, shape (4, 3) or None
+        The union's corners in cyclic order, starting with ``A``'s corners away from the
+        shared side.
+    """
+    h = geometry.plane_distance(desk_plane, np.vstack([A, B]))
+    if abs(h[:4].mean() - h[4:].mean()) > cfg.join_step:
+        return None
+    for s in range(4):
+        a0, a1 = A[s], A[(s + 1) % 4]
+        for t in range(4):
+            for m0, m1 in (((t + 1) % 4, t), (t, (t + 1) % 4)):  # B's side either way round
+                if max(np.linalg.norm(a0 - B[m0]), np.linalg.norm(a1 - B[m1])) > cfg.join_touch:
+                    continue
+                # B's corners away from the shared side: the neighbour of each shared one
+                far0 = B[(m0 + (m0 - m1)) % 4]
+                far1 = B[(m1 + (m1 - m0)) % 4]
+                U = np.array([A[(s + 2) % 4], A[(s + 3) % 4], far0, far1])
+                if _is_rectangle(U, cfg.join_angle_deg) and all(
+                        _off_line(p, U[i], U[j]) <= cfg.join_touch
+                        for p, i, j in ((a0, 1, 2), (a1, 3, 0))):
+                    return U
+    return None
+
+
+def _is_rectangle(U: NDArray[np.float64], max_deg: float) -> bool:
+    """Whether every corner of ``U`` (4, 3) is within ``max_deg`` of a right angle."""
+    for k in range(4):
+        u, v = _unit(U[(k + 1) % 4] - U[k]), _unit(U[k - 1] - U[k])
+        if abs(90.0 - np.degrees(np.arccos(np.clip(u @ v, -1.0, 1.0)))) > max_deg:
+            return False
+    return True
+
+
+def _off_line(p: NDArray[np.float64], a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+    """The distance of point ``p`` from the line through ``a`` and ``b`` (3-D)."""
+    d = _unit(b - a)
+    r = p - a
+    return float(np.linalg.norm(r - (r @ d) * d))
 
 
 def _seam_corners(grad: Gradients, c: NDArray[np.float64], k: int, t: float, offset: float,
