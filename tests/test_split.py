@@ -165,10 +165,16 @@ def test_halves_at_two_heights_or_apart_or_askew_are_not_joined():
     assert join_halves(A, B + [0.0, 0.002, 0.0], DESK) is not None  # within join_touch
     _, _, moved = _halves(cut=0.092)
     assert join_halves(A, moved, DESK) is None  # a 6 mm gap between them
-    shorter = B.copy()
-    shorter[1:3] -= 0.012 * (shorter[1] - shorter[0]) / np.linalg.norm(shorter[1] - shorter[0])
-    shorter[2] += 0.02 * (shorter[2] - shorter[1]) / np.linalg.norm(shorter[2] - shorter[1])
-    assert join_halves(A, shorter, DESK) is None  # its far side askew: no rectangle
+    kinked = B.copy()
+    kinked[2] += 0.02 * (kinked[2] - kinked[1]) / np.linalg.norm(kinked[2] - kinked[1])
+    assert join_halves(A, kinked, DESK) is None  # the union's side bends where they meet
+    # both parts sheared alike: the sides run on straight, but the corners are 80 and 100 deg
+    shear = 0.146 * np.tan(np.radians(10.0)) * (A[1] - A[0]) / np.linalg.norm(A[1] - A[0])
+    A_s, B_s = A.copy(), B.copy()
+    A_s[2:] += shear
+    B_s[2:] += shear
+    assert join_halves(A_s, B_s, DESK) is None
+    assert join_halves(A_s, B_s, DESK, SplitConfig(join_angle_deg=11.0)) is not None
     _, A2, B2 = _halves(height=0.03)
     assert join_halves(A2, B2, DESK) is not None
 

@@ -447,11 +447,6 @@ class Detector:
                 if more:
                     found += self._fit_extents(rig, segs, grads, more, desk_plane, texture)
                 lap("stereo")
-        # beyond the paper: one cover found as two books, cut at a printed band, joined
-        # (after the extent step, which moves each part's outer sides to the cover's)
-        if self.cfg.split.join and desk_plane is not None:
-            found = self._joined(rig, found, desk_plane, texture)
-            lap("split")
         # beyond the paper: two touching books taken for one cover, split at their seam
         # (after the extent step, which would grow each part over the other again)
         if self.cfg.split.enabled and desk_plane is not None:
@@ -470,6 +465,11 @@ class Detector:
         if self.cfg.trim.grow and read and desk_plane is not None:
             found = self._grown(rig, segs, grads, found, desk_plane, texture, read)
             lap("trim")
+        # beyond the paper: one cover found as two books, cut at a printed band, joined
+        # (after the steps that move each part's outer sides to the cover's edges)
+        if self.cfg.split.join and desk_plane is not None:
+            found = self._joined(rig, found, desk_plane, texture)
+            lap("split")
         # last, since the extent step may grow a piece of a cover to the whole cover
         found, small = self._without_small(found)
         if small:

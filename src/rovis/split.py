@@ -73,7 +73,7 @@ class SplitConfig:
     join: bool = True
     join_touch: float = 0.004
     join_step: float = 0.003
-    join_angle_deg: float = 4.0
+    join_angle_deg: float = 8.0
 
 
 def seam_profile(grad: Gradients, corners: NDArray[np.float64], k: int, t: NDArray[np.float64],
