@@ -156,12 +156,13 @@ def test_two_halves_of_a_cover_are_joined_whatever_their_corner_order(roll, reve
     B = np.roll(B[::-1] if reverse else B, roll, axis=0)
     U = join_halves(A, B, DESK)
     assert U is not None and _same_rectangle(U, cover)
-    assert join_halves(B, A, DESK) is not None
+    np.testing.assert_allclose(U[:2], A[[3, 0]])  # A's far corners first, A's way round
+    assert _same_rectangle(join_halves(B, A, DESK), cover)
 
 
 def test_halves_at_two_heights_or_apart_or_askew_are_not_joined():
     cover, A, B = _halves()
-    assert join_halves(A, B + [0.0, 0.0, 0.004], DESK) is None  # 4 mm higher: two books
+    assert join_halves(A, B + [0.0, 0.0, 0.0035], DESK) is None  # 3.5 mm higher: two books
     assert join_halves(A, B + [0.0, 0.002, 0.0], DESK) is not None  # within join_touch
     _, _, moved = _halves(cut=0.092)
     assert join_halves(A, moved, DESK) is None  # a 6 mm gap between them
@@ -177,6 +178,15 @@ def test_halves_at_two_heights_or_apart_or_askew_are_not_joined():
     assert join_halves(A_s, B_s, DESK, SplitConfig(join_angle_deg=11.0)) is not None
     _, A2, B2 = _halves(height=0.03)
     assert join_halves(A2, B2, DESK) is not None
+
+
+def test_a_cover_and_its_own_half_are_not_joined():
+    # they share a whole side too, and what is left of the cover beside the half is a
+    # rectangle: only the half lying across the shared side from the other makes a union
+    cover, A, B = _halves()
+    assert join_halves(cover, B, DESK) is None
+    assert join_halves(B, cover, DESK) is None
+    assert join_halves(A, cover, DESK) is None
 
 
 def test_the_pipeline_joins_a_cover_cut_at_its_band_switched_on_only():

@@ -469,7 +469,7 @@ class Detector:
         # (after the steps that move each part's outer sides to the cover's edges)
         if self.cfg.split.join and desk_plane is not None:
             found = self._joined(rig, found, desk_plane, texture)
-            lap("split")
+            lap("join")
         # last, since the extent step may grow a piece of a cover to the whole cover
         found, small = self._without_small(found)
         if small:
@@ -1490,7 +1490,9 @@ class Detector:
                 ) -> list[tuple[Pair, BookDetection]]:
         """The books with each two that are the halves of one cover
         (:func:`rovis.split.join_halves`) replaced by that cover, where it passes the pose
-        checks; it keeps the first half's source, ``quality`` and ``error_px``."""
+        checks as the less certain of the two would (a cover found in one image, among the
+        alternatives or the candidates, or with a side unseen must stand higher); it takes
+        that one's ``source``, the lower ``quality`` and the larger ``error_px``."""
         out = list(found)
         joined = True
         while joined:  # a cover cut twice is joined a half at a time
@@ -1500,7 +1502,14 @@ class Detector:
                                 self.cfg.split)
                 if U is None:
                     continue
-                trial = _pair_at(rig, out[a][0], U)
+                first, second = out[a][0], out[b][0]
+                trial = replace(
+                    _pair_at(rig, first, U), quality=min(first.quality, second.quality),
+                    error_px=max(first.error_px, second.error_px),
+                    transferred=first.transferred or second.transferred,
+                    alternative=first.alternative or second.alternative,
+                    three_sided=first.three_sided or second.three_sided,
+                    source=(first.source if first.source != "segmentation" else second.source))
                 shift = int(np.argmin(trial.left.sum(axis=1)))  # eq. 1 order, left image
                 trial = replace(trial, left=np.roll(trial.left, -shift, axis=0),
                                 right=np.roll(trial.right, -shift, axis=0))

@@ -54,7 +54,7 @@ class SplitConfig:
 
     The reverse (:func:`join_halves`, with ``join``): two books whose mean heights lie
     within ``join_step`` of each other, sharing a whole side (both its ends within
-    ``join_touch``), whose outer corners make a rectangle (each angle within
+    ``join_touch``) and lying either side of it, whose outer corners make a rectangle (each angle within
     ``join_angle_deg`` of 90°, the shared corners within ``join_touch`` of its sides), are
     one cover cut at a printed band.
     """
@@ -208,7 +208,7 @@ def join_halves(A: NDArray[np.float64], B: NDArray[np.float64], desk_plane: NDAr
     cover's own edge: the segmentation may find the two parts either side of it as two
     covers, and stereo places both at the cover's height. Two books that are halves of one
     lie at one height (within ``cfg.join_step``), share a whole side (both its ends
-    within ``cfg.join_touch``) and together make a rectangle (each corner's angle within
+    within ``cfg.join_touch``), lie either side of it, and together make a rectangle (each corner's angle within
     ``cfg.join_angle_deg`` of 90°, the shared side's ends within ``cfg.join_touch`` of the
     union's sides: no kink where the parts meet). Two books of one height and one size,
     laid flush and aligned, pass these tests too (:func:`split_union` cannot tell them from
@@ -240,6 +240,10 @@ def join_halves(A: NDArray[np.float64], B: NDArray[np.float64], desk_plane: NDAr
                 # B's corners away from the shared side: the neighbour of each shared one
                 far0 = B[(m0 + (m0 - m1)) % 4]
                 far1 = B[(m1 + (m1 - m0)) % 4]
+                # ...across the shared side from A's (not a half of A lying on A)
+                if (far0 - a0) @ (A[(s + 3) % 4] - a0) >= 0 or \
+                        (far1 - a1) @ (A[(s + 2) % 4] - a1) >= 0:
+                    continue
                 U = np.array([A[(s + 2) % 4], A[(s + 3) % 4], far0, far1])
                 if _is_rectangle(U, cfg.join_angle_deg) and all(
                         _off_line(p, U[i], U[j]) <= cfg.join_touch
