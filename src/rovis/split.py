@@ -21,6 +21,10 @@ place it). Where both sides are measured they must agree: a side may run along a
 neighbour and take that one's edge. Two touching books of one height are not told apart
 (their seam alone is a printed band's), nor are two whose seam shows no step: the nearer
 book the taller and both covers of one brightness, it hides the seam behind its top edge.
+
+The reverse, :func:`join_halves`: one cover found as two books either side of a printed
+band, the two at one height, sharing a whole side and making one rectangle, is joined.
+Two touching books of one height and one size, laid flush and aligned, are joined too.
 """
 
 from __future__ import annotations
