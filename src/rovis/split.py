@@ -38,6 +38,7 @@ from rovis import geometry
 from rovis.extent import _edge_height, _unit
 from rovis.segment.edges import Gradients
 from rovis.segment.lines import intersect, refine_segment
+from rovis.stereo import flat_rectangle
 
 
 @dataclass(frozen=True)
@@ -58,9 +59,9 @@ class SplitConfig:
 
     The reverse (:func:`join_halves`, with ``join``): two books whose mean heights lie
     within ``join_step`` of each other, sharing a whole side (both its ends within
-    ``join_touch``) and lying either side of it, whose outer corners make a rectangle (each angle within
-    ``join_angle_deg`` of 90°, the shared corners within ``join_touch`` of its sides), are
-    one cover cut at a printed band.
+    ``join_touch``) and lying either side of it, whose outer corners make a rectangle
+    (each angle within ``join_angle_deg`` of 90°, the shared corners within
+    ``join_touch`` of its sides), are one cover cut at a printed band.
     """
 
     enabled: bool = True
@@ -212,9 +213,9 @@ def join_halves(A: NDArray[np.float64], B: NDArray[np.float64], desk_plane: NDAr
     cover's own edge: the segmentation may find the two parts either side of it as two
     covers, and stereo places both at the cover's height. Two books that are halves of one
     lie at one height (within ``cfg.join_step``), share a whole side (both its ends
-    within ``cfg.join_touch``), lie either side of it, and together make a rectangle (each corner's angle within
-    ``cfg.join_angle_deg`` of 90°, the shared side's ends within ``cfg.join_touch`` of the
-    union's sides: no kink where the parts meet). Two books of one height and one size,
+    within ``cfg.join_touch``), lie either side of it, and together make a rectangle
+    (each corner's angle within ``cfg.join_angle_deg`` of 90°, the shared side's ends
+    within ``cfg.join_touch`` of the union's sides: no kink where the parts meet). Two books of one height and one size,
     laid flush and aligned, pass these tests too (:func:`split_union` cannot tell them from
     a band either).
 
@@ -249,20 +250,12 @@ def join_halves(A: NDArray[np.float64], B: NDArray[np.float64], desk_plane: NDAr
                         (far1 - a1) @ (A[(s + 2) % 4] - a1) >= 0:
                     continue
                 U = np.array([A[(s + 2) % 4], A[(s + 3) % 4], far0, far1])
-                if _is_rectangle(U, cfg.join_angle_deg) and all(
+                if flat_rectangle(U, side_range=(0.0, np.inf),
+                                  max_skew_deg=cfg.join_angle_deg)[0] and all(
                         _off_line(p, U[i], U[j]) <= cfg.join_touch
                         for p, i, j in ((a0, 1, 2), (a1, 3, 0))):
                     return U
     return None
-
-
-def _is_rectangle(U: NDArray[np.float64], max_deg: float) -> bool:
-    """Whether every corner of ``U`` (4, 3) is within ``max_deg`` of a right angle."""
-    for k in range(4):
-        u, v = _unit(U[(k + 1) % 4] - U[k]), _unit(U[k - 1] - U[k])
-        if abs(90.0 - np.degrees(np.arccos(np.clip(u @ v, -1.0, 1.0)))) > max_deg:
-            return False
-    return True
 
 
 def _off_line(p: NDArray[np.float64], a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
