@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from rovis import geometry
-from rovis.pipeline import DetectConfig, Detector
+from rovis.pipeline import DetectConfig, Detector, Pair
 from rovis.segment import SegmentConfig, gradients
 from rovis.segment.edges import CANNY_LOW_RATIO
-from rovis.split import SplitConfig, join_halves, seam_profile, split_union
+from rovis.split import SplitConfig, join_halves, seam_profile, split_union, split_union_heights
 from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
@@ -73,6 +73,38 @@ def test_two_books_of_two_heights_are_split_into_each(two_heights):
         truth = geometry.project(Q["left"], best.corners)
         err = np.linalg.norm(p["left"][:, None, :] - truth[None, :, :], axis=2).min(axis=1)
         assert np.sort(err)[1] < 0.5 and err.max() < 6.0  # px
+
+
+def test_the_split_measures_each_part_at_its_books_height(two_heights):
+    books, union, grads, Q, desk, _ = two_heights
+    strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
+    corners = {cam: geometry.project(Q[cam], union) for cam in Q}
+    parts, heights = split_union_heights(corners, Q, grads, {cam: strength for cam in Q}, desk)
+    for part, h in zip(parts, heights):
+        mid = part["left"].mean(axis=0)
+        book = min(books, key=lambda b: np.linalg.norm(
+            geometry.project(Q["left"], b.corners).mean(axis=0) - mid))
+        assert abs(h - book.size[2]) < 0.004  # m: the edges along the cut sides
+
+
+def test_a_part_off_in_one_image_is_laid_at_its_height(two_heights):
+    # the lower book's quad in the right image where the union's outline puts it: at the
+    # taller book's height (the right quad of a cover completed at one height), so
+    # triangulated, the part stands as high as its neighbour
+    books, _, grads, Q, desk, (sc, _) = two_heights
+    low, high = sorted(books, key=lambda b: b.size[2])
+    lifted = low.corners + np.array([0.0, 0.0, high.size[2] - low.size[2]])
+    part = {"left": geometry.project(Q["left"], low.corners),
+            "right": geometry.project(Q["right"], lifted)}
+    det = Detector(sc.rig)
+    pair = Pair(part["left"], part["right"], 1.0, 0.0)
+    P = geometry.triangulate(Q["left"], Q["right"], part["left"], part["right"])
+    assert abs(geometry.plane_distance(desk, P).mean() - low.size[2]) > 0.005  # as given
+    # laid at the height the split measures (here 2 mm off the truth), its sides snapped
+    _, book = det._laid_part(sc.rig, grads, pair, part, low.size[2] + 0.002, desk, None)
+    assert book is not None
+    assert np.linalg.norm(book.pose.center[:2] - np.asarray(low.center)[:2]) < 0.005  # m
+    assert abs(book.pose.size[2] - low.size[2]) < 0.003
 
 
 def test_the_seam_is_the_strongest_line_across_the_union(two_heights):

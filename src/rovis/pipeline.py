@@ -42,7 +42,7 @@ from rovis.segment.lines import Lines
 from rovis.segment.methods import METHODS, segment
 from rovis.segment.boundary import Fit, refine_quad, refine_quad_both, refine_sides, side_evidence
 from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
-from rovis.split import SplitConfig, join_halves, split_union
+from rovis.split import SplitConfig, join_halves, split_union_heights
 from rovis.track import TrackConfig, follow
 from rovis.trim import TrimConfig, cut_cover, grow_run, height_profile, map_height, trim_side
 from rovis.stereo import (Match, StereoConfig, find_in_other_view, flat_rectangle, match_quads,
@@ -1449,40 +1449,77 @@ class Detector:
                       texture: dict[str, NDArray[np.float32]] | None = None,
                       ) -> list[tuple[Pair, BookDetection]]:
         """Each book that is two touching books' outline replaced by the two
-        (:func:`rovis.split.split_union`), where both parts pass the pose checks and their
-        heights differ by ``split.min_step`` or more; the parts keep the pair's source,
-        ``quality`` and ``error_px``."""
+        (:func:`rovis.split.split_union_heights`), where both parts pass the pose checks and
+        their heights differ by ``split.min_step`` or more; the parts keep the pair's
+        source, ``quality`` and ``error_px``.
+
+        Each part's sides are fitted to its own edges in each image first. Where that
+        loses the step (one image's quad of the lower part still on the union's outline,
+        at the taller book's disparity), each part is laid at the height its edges along
+        the cut sides stand at (what split it) and its sides moved onto the edges both
+        images show there (:func:`rovis.heightmap.snap_sides`)."""
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         strength = self._edge_strength(segs)
         out: list[tuple[Pair, BookDetection]] = []
         for pair, book in found:
-            parts = split_union({"left": pair.left, "right": pair.right}, Q, grads, strength,
-                                desk_plane, self.cfg.split)
-            if parts is not None:
-                made = []
-                for part in parts:
-                    # each part's sides fitted to its own edges in each image first: the
-                    # union's corners may come from a rectangle placed at one height
-                    # (a candidate completed in 3D), off in one image for the lower part
-                    fitted = None
-                    for quads in ({cam: refine_quad(grads[cam], q) for cam, q in part.items()},
-                                  part):
-                        shift = int(np.argmin(quads["left"].sum(axis=1)))  # eq. 1 order, left
-                        trial = replace(pair, left=np.roll(quads["left"], -shift, axis=0),
-                                        right=np.roll(quads["right"], -shift, axis=0))
-                        trial, fitted, _ = self._reconstruct_or_why(rig, trial, desk_plane,
-                                                                    texture)
-                        if fitted is not None:
-                            break
-                    made.append((trial, fitted))
-                # the parts, placed in 3D each on its own, must keep the step that split them
-                if all(fitted is not None for _, fitted in made) and abs(
-                        made[0][1].pose.size[2] - made[1][1].pose.size[2]  # type: ignore[union-attr]
-                ) >= self.cfg.split.min_step:
+            split = split_union_heights({"left": pair.left, "right": pair.right}, Q, grads,
+                                        strength, desk_plane, self.cfg.split)
+            if split is not None:
+                parts, heights = split
+                made = [self._fitted_part(rig, grads, pair, part, desk_plane, texture)
+                        for part in parts]
+                if not self._keeps_step(made) and self.cfg.split.lay:
+                    made = [self._laid_part(rig, grads, pair, part, h, desk_plane, texture)
+                            for part, h in zip(parts, heights)]
+                if self._keeps_step(made):
                     out += made  # type: ignore[arg-type]
                     continue
             out.append((pair, book))
         return out
+
+    def _keeps_step(self, made: list[tuple[Pair, BookDetection | None]]) -> bool:
+        """Whether both parts of a split made books whose heights differ by
+        ``split.min_step`` or more (each placed in 3D on its own, they keep the step that
+        split them)."""
+        books = [book for _, book in made]
+        return all(b is not None for b in books) and abs(
+            books[0].pose.size[2] - books[1].pose.size[2]  # type: ignore[union-attr]
+        ) >= self.cfg.split.min_step
+
+    def _fitted_part(self, rig: StereoRig, grads: dict[str, Gradients], pair: Pair,
+                     part: dict[str, NDArray[np.float64]], desk_plane: NDArray[np.float64],
+                     texture: dict[str, NDArray[np.float32]] | None,
+                     ) -> tuple[Pair, BookDetection | None]:
+        """One part of a split as a book: its sides fitted to its own edges in each image
+        (the union's corners may come from a rectangle placed at one height, a candidate
+        completed in 3D, off in one image for the lower part), else as cut."""
+        fitted = None
+        for quads in ({cam: refine_quad(grads[cam], q) for cam, q in part.items()}, part):
+            shift = int(np.argmin(quads["left"].sum(axis=1)))  # eq. 1 order, left image
+            trial = replace(pair, left=np.roll(quads["left"], -shift, axis=0),
+                            right=np.roll(quads["right"], -shift, axis=0))
+            trial, fitted, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
+            if fitted is not None:
+                break
+        return trial, fitted
+
+    def _laid_part(self, rig: StereoRig, grads: dict[str, Gradients], pair: Pair,
+                   part: dict[str, NDArray[np.float64]], height: float,
+                   desk_plane: NDArray[np.float64],
+                   texture: dict[str, NDArray[np.float32]] | None,
+                   ) -> tuple[Pair, BookDetection | None]:
+        """One part of a split as a book laid at ``height`` above the desk: the left
+        image's quad on that plane (the right's lies on the union's outline there), its
+        sides moved onto the edges both images show within ``split.lay_reach``."""
+        P = on_plane(rig.Q_L, part["left"], desk_plane, height)
+        reach = self.cfg.split.lay_reach
+        P = snap_sides(P, {"left": rig.Q_L, "right": rig.Q_R}, grads, reach=reach, inward=reach)
+        trial = _pair_at(rig, pair, P)
+        shift = int(np.argmin(trial.left.sum(axis=1)))  # eq. 1 order, left image
+        trial = replace(trial, left=np.roll(trial.left, -shift, axis=0),
+                        right=np.roll(trial.right, -shift, axis=0))
+        trial, fitted, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
+        return trial, fitted
 
     def _joined(self, rig: StereoRig, found: list[tuple[Pair, BookDetection]],
                 desk_plane: NDArray[np.float64],

@@ -75,6 +75,8 @@ class SplitConfig:
     max_spread: float = 0.004
     max_seams: int = 3
     height_range: tuple[float, float] = (0.003, 0.08)
+    lay: bool = True
+    lay_reach: float = 0.01
     join: bool = True
     join_touch: float = 0.004
     join_step: float = 0.003
@@ -121,11 +123,13 @@ def seam_profile(grad: Gradients, corners: NDArray[np.float64], k: int, t: NDArr
     return share[np.arange(len(t)), best], offsets[best]
 
 
+Parts = tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]]
+
+
 def split_union(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],
                 grads: dict[str, Gradients], strength: dict[str, float],
                 desk_plane: NDArray[np.float64], cfg: SplitConfig = SplitConfig(), *,
-                down: tuple[float, float] = (0.0, 1.0),
-                ) -> tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]] | None:
+                down: tuple[float, float] = (0.0, 1.0)) -> Parts | None:
     """A stereo pair's cover (corners (4, 2) per camera, eq. 1 order) split into two
     touching books' covers, or None where it is one book.
 
@@ -155,7 +159,17 @@ def split_union(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np
     (dict, dict) or None
         Each part's corners (4, 2) per camera, in the cover's corner order.
     """
-    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+    found = split_union_heights(corners, Q, grads, strength, desk_plane, cfg, down=down)
+    return None if found is None else found[0]
+
+
+def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],
+                        grads: dict[str, Gradients], strength: dict[str, float],
+                        desk_plane: NDArray[np.float64], cfg: SplitConfig = SplitConfig(), *,
+                        down: tuple[float, float] = (0.0, 1.0),
+                        ) -> tuple[Parts, tuple[float, float]] | None:
+    """:func:`split_union`'s parts and the heights above the desk (metres) their edges
+    along the cut sides stand at, each part's the mean over the measured sides."""
     P = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
     if not np.all(np.isfinite(P)):
         return None
@@ -190,7 +204,7 @@ def split_union(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np
             seams.append((float(score[i]), k, {"left": (t[i], found["left"][1][i]),
                                                "right": (t[j], found["right"][1][j])}))
     for _, k, t_seam in sorted(seams, key=lambda item: -item[0]):  # the strongest first
-        parts: tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]] = ({}, {})
+        parts: Parts = ({}, {})
         for cam, c in corners.items():
             seam = _seam_corners(grads[cam], c, k, *t_seam[cam])
             if seam is None:
@@ -200,8 +214,9 @@ def split_union(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np
             far[k], far[(k + 1) % 4] = seam
             parts[0][cam], parts[1][cam] = near, far
         else:
-            if _step_in_height(corners, parts, k, Q, grads, up, cfg, down=down) > 0:
-                return parts
+            heights = _step_in_height(corners, parts, k, Q, grads, desk_plane, cfg, down=down)
+            if heights is not None:
+                return parts, heights
     return None
 
 
@@ -293,17 +308,18 @@ def _seam_corners(grad: Gradients, c: NDArray[np.float64], k: int, t: float, off
 def _step_in_height(corners: dict[str, NDArray[np.float64]],
                     parts: tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]],
                     k: int, Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
-                    up: NDArray[np.float64], cfg: SplitConfig, *,
-                    down: tuple[float, float]) -> float:
-    """How far the sides the seam cuts (``k + 1`` and ``k + 3``) step in height there
-    (metres, the smaller of the measured sides'), or 0 unless each measured side's two
-    halves (one per part) lie ``cfg.min_step`` apart or more, the same way round, within
-    ``cfg.height_range``, and two measured sides' halves within ``cfg.max_spread`` of each
-    other's."""
+                    desk_plane: NDArray[np.float64], cfg: SplitConfig, *,
+                    down: tuple[float, float]) -> tuple[float, float] | None:
+    """The heights the sides the seam cuts (``k + 1`` and ``k + 3``) stand at either side
+    of it (metres above the desk, per part the mean over the measured sides), or None
+    unless each measured side's two halves (one per part) lie ``cfg.min_step`` apart or
+    more, the same way round, within ``cfg.height_range``, and two measured sides' halves
+    within ``cfg.max_spread`` of each other's."""
+    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
     placed = [geometry.triangulate(Q["left"], Q["right"], part["left"], part["right"])
               for part in parts]
     if not all(np.all(np.isfinite(P)) for P in placed):
-        return 0.0
+        return None
     steps = []
     for s in ((k + 1) % 4, (k + 3) % 4):
         if _faces_camera(corners, s, down):
@@ -313,18 +329,21 @@ def _step_in_height(corners: dict[str, NDArray[np.float64]],
             z, sigma = _edge_height(P, s, Q, grads, up)
             if sigma > cfg.max_sigma:
                 break
-            halves.append(float(up @ (0.5 * (P[s] + P[(s + 1) % 4]))) + z)
+            # above the desk: the side's midpoint's distance to it, moved by the edge's z
+            mid = 0.5 * (P[s] + P[(s + 1) % 4])
+            halves.append(float(geometry.plane_distance(desk_plane, mid)[0]) + z)
         if len(halves) == 2:
             steps.append(halves)
     if not steps:
-        return 0.0
+        return None
     h = np.array(steps)  # (sides, 2): each measured side's heights, near part first
     step = h[:, 0] - h[:, 1]
     if np.any(h < cfg.height_range[0]) or np.any(h > cfg.height_range[1]) \
             or np.any(np.abs(step) < cfg.min_step) or np.any(np.sign(step) != np.sign(step[0])) \
             or np.any(np.ptp(h, axis=0) > cfg.max_spread):
-        return 0.0
-    return float(np.abs(step).min())
+        return None
+    near, far = h.mean(axis=0)
+    return float(near), float(far)
 
 
 def _faces_camera(corners: dict[str, NDArray[np.float64]], s: int,
