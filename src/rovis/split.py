@@ -56,6 +56,9 @@ class SplitConfig:
     height, and where both sides are measured, their halves within ``max_spread`` of each
     other's, every half within ``height_range`` above the desk (a book's). The
     ``max_seams`` strongest seams of each axis are tried, the strongest that steps kept.
+    With ``lay``, parts whose own fits lose the step are laid at the heights that split
+    them, their sides moved onto edges within ``lay_reach``
+    (:meth:`rovis.pipeline.Detector._laid_part`).
 
     The reverse (:func:`join_halves`, with ``join``): two books whose mean heights lie
     within ``join_step`` of each other, sharing a whole side (both its ends within
