@@ -292,6 +292,20 @@ def test_a_warm_started_search_keeps_the_covers_of_other_thresholds():
     assert len(forgetful.segment(grad)) < len(cold)
 
 
+def test_without_warm_start_each_image_gets_the_full_search():
+    grad = _rendered_gradients(111)
+    ctl = CascadeController(SegmentConfig(warm_start=False))
+    cold = ctl.segment(grad)
+    again = ctl.segment(grad)  # the next frame of a still scene
+    assert again.iterations == cold.iterations
+    np.testing.assert_array_equal(again.corners, cold.corners)
+    warm = CascadeController(SegmentConfig())
+    assert warm.warm_start and warm.segment(grad).iterations == cold.iterations
+    assert warm.segment(grad).iterations != cold.iterations  # the climb, not the grid
+    # the keyword still overrides the setting (rovis.segment.segment's one-image calls)
+    assert not CascadeController(SegmentConfig(), warm_start=False).warm_start
+
+
 def _stub_lsd(monkeypatch, corners):
     """Make the closed loop's LSD source return ``corners`` (K, 4, 2) as its covers."""
     import rovis.segment.methods as methods

@@ -49,6 +49,10 @@ class SegmentConfig:
         N_max anyway, so y = 0 without running Hough (saves the most expensive evaluations).
     coarse_steps, refine_steps : int
         Outer-loop search: a log-spaced grid, then halving steps around the best.
+    warm_start : bool
+        In a sequence, start each image's search from the previous image's optimum and
+        climb locally (the paper's design; faster). Off: a full search every image, which
+        evaluates more T_H and may keep more covers (measured: docs/segmentation.md).
     warm_step : float
         Multiplicative T_H step of a warm-started (sequence) search.
     union : bool
@@ -109,6 +113,7 @@ class SegmentConfig:
     open_T_HG: int = 30
     coarse_steps: int = 5
     refine_steps: int = 2
+    warm_start: bool = True
     warm_step: float = 1.25
     max_inner: int = 12
     max_edge_frac: float = 0.08

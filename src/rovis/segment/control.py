@@ -30,13 +30,15 @@ class CascadeController:
     Parameters
     ----------
     cfg : SegmentConfig
-    warm_start : bool
-        Start each image's search from the previous image's optimum (sequences).
+    warm_start : bool, optional
+        Start each image's search from the previous image's optimum (sequences); default
+        ``cfg.warm_start``.
     """
 
-    def __init__(self, cfg: SegmentConfig | None = None, *, warm_start: bool = True) -> None:
+    def __init__(self, cfg: SegmentConfig | None = None, *,
+                 warm_start: bool | None = None) -> None:
         self.cfg = cfg or SegmentConfig()
-        self.warm_start = warm_start
+        self.warm_start = self.cfg.warm_start if warm_start is None else warm_start
         self.last_T_H: float | None = None
         self.last_extra_T_H: list[float] = []  # the other T_H whose covers were kept
 
