@@ -82,7 +82,7 @@ class TrimConfig:
     grow_margin: float = -0.005  # the maps carry a cover's height 5-20 mm beyond its edge
     grow_min_same: float = 0.3
     grow_min: float = 0.015  # smaller moves took a shadow's or block's line, measured
-    grow_continuation: float = 0.25  # a quarter: measured, docs/stereo.md "A cover cut short"
+    grow_continuation: float = 0.5
     grow_foot: bool = True
     map_height: bool = True
     min_height_move: float = 0.003  # the maps sweep every 3 mm
