@@ -79,32 +79,53 @@ def test_the_split_measures_each_part_at_its_books_height(two_heights):
     books, union, grads, Q, desk, _ = two_heights
     strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
     corners = {cam: geometry.project(Q[cam], union) for cam in Q}
-    parts, heights = split_union_heights(corners, Q, grads, {cam: strength for cam in Q}, desk)
-    for part, h in zip(parts, heights):
+    parts, heights, seams = split_union_heights(corners, Q, grads,
+                                                {cam: strength for cam in Q}, desk)
+    other = {0: 1, 1: 0}
+    for k, (part, h, seam) in enumerate(zip(parts, heights, seams)):
         mid = part["left"].mean(axis=0)
         book = min(books, key=lambda b: np.linalg.norm(
             geometry.project(Q["left"], b.corners).mean(axis=0) - mid))
         assert abs(h - book.size[2]) < 0.004  # m: the edges along the cut sides
+        # the seam side is the one the two parts share
+        a, b = part["left"][seam], part["left"][(seam + 1) % 4]
+        shared = parts[other[k]]["left"]
+        assert min(np.linalg.norm(shared - a, axis=1)) < 1e-9
+        assert min(np.linalg.norm(shared - b, axis=1)) < 1e-9
+    # the same cover's corners in a world whose origin is not on the desk (the desk plane
+    # with d != 0): the heights are above the desk, not along its normal from the origin
+    shift = np.array([0.1, -0.2, 0.3])
+    moved = {cam: Q[cam] @ np.vstack([np.hstack([np.eye(3), -shift[:, None]]), [0, 0, 0, 1]])
+             for cam in Q}
+    plane = np.r_[desk[:3], desk[3] - desk[:3] @ shift]
+    _, again, _ = split_union_heights(corners, moved, grads, {cam: strength for cam in Q}, plane)
+    np.testing.assert_allclose(again, heights, atol=1e-6)
 
 
-def test_a_part_off_in_one_image_is_laid_at_its_height(two_heights):
-    # the lower book's quad in the right image where the union's outline puts it: at the
-    # taller book's height (the right quad of a cover completed at one height), so
-    # triangulated, the part stands as high as its neighbour
-    books, _, grads, Q, desk, (sc, _) = two_heights
-    low, high = sorted(books, key=lambda b: b.size[2])
-    lifted = low.corners + np.array([0.0, 0.0, high.size[2] - low.size[2]])
-    part = {"left": geometry.project(Q["left"], low.corners),
-            "right": geometry.project(Q["right"], lifted)}
-    det = Detector(sc.rig)
-    pair = Pair(part["left"], part["right"], 1.0, 0.0)
-    P = geometry.triangulate(Q["left"], Q["right"], part["left"], part["right"])
-    assert abs(geometry.plane_distance(desk, P).mean() - low.size[2]) > 0.005  # as given
-    # laid at the height the split measures (here 2 mm off the truth), its sides snapped
-    _, book = det._laid_part(sc.rig, grads, pair, part, low.size[2] + 0.002, desk, None)
-    assert book is not None
-    assert np.linalg.norm(book.pose.center[:2] - np.asarray(low.center)[:2]) < 0.005  # m
-    assert abs(book.pose.size[2] - low.size[2]) < 0.003
+def test_parts_off_in_one_image_are_laid_at_the_heights_that_split_them(two_heights):
+    # the union's quad in the right image at the taller book's height all along (as a
+    # candidate completed in 3D as one rectangle gives it): fitted on its own, the lower
+    # part stands higher than its neighbour (the step turned round)
+    from types import SimpleNamespace
+
+    books, union, grads, Q, desk, (sc, _) = two_heights
+    top = union.copy()
+    top[:, 2] = max(b.size[2] for b in books)
+    pair = Pair(geometry.project(Q["left"], union), geometry.project(Q["right"], top), 1.0, 0.0)
+    segs = {cam: SimpleNamespace(T_H=None) for cam in Q}  # the open loop's edge strength
+    found = {}
+    for lay in (True, False):
+        det = Detector(sc.rig, DetectConfig(split=SplitConfig(lay=lay)))
+        _, union_book, _ = det._reconstruct_or_why(sc.rig, pair, desk, None)
+        assert union_book is not None
+        found[lay] = [book for _, book in det._split_unions(sc.rig, segs, grads,
+                                                            [(pair, union_book)], desk)]
+    assert len(found[False]) == 1  # the union kept
+    assert len(found[True]) == 2
+    for book in books:
+        got = min(found[True], key=lambda b: np.linalg.norm(b.pose.center - book.center))
+        assert np.linalg.norm(got.pose.center[:2] - np.asarray(book.center)[:2]) < 0.006  # m
+        assert abs(got.pose.size[2] - book.size[2]) < 0.003
 
 
 def test_the_seam_is_the_strongest_line_across_the_union(two_heights):

@@ -1453,11 +1453,12 @@ class Detector:
         their heights differ by ``split.min_step`` or more; the parts keep the pair's
         source, ``quality`` and ``error_px``.
 
-        Each part's sides are fitted to its own edges in each image first. Where that
-        loses the step (one image's quad of the lower part still on the union's outline,
-        at the taller book's disparity), each part is laid at the height its edges along
-        the cut sides stand at (what split it) and its sides moved onto the edges both
-        images show there (:func:`rovis.heightmap.snap_sides`)."""
+        Each part's sides are fitted to its own edges in each image first. Where both
+        parts then pass the pose checks but lose the step or turn it round (one image's
+        quad of the lower part still on the union's outline, at the taller book's
+        disparity), each part is laid at the height its edges along the cut sides stand at
+        (what split it) and its sides but the seam moved onto the edges both images show
+        there (:func:`rovis.heightmap.snap_sides`)."""
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         strength = self._edge_strength(segs)
         out: list[tuple[Pair, BookDetection]] = []
@@ -1465,26 +1466,33 @@ class Detector:
             split = split_union_heights({"left": pair.left, "right": pair.right}, Q, grads,
                                         strength, desk_plane, self.cfg.split)
             if split is not None:
-                parts, heights = split
+                parts, heights, seams = split
                 made = [self._fitted_part(rig, grads, pair, part, desk_plane, texture)
                         for part in parts]
-                if not self._keeps_step(made) and self.cfg.split.lay:
-                    made = [self._laid_part(rig, grads, pair, part, h, desk_plane, texture)
-                            for part, h in zip(parts, heights)]
-                if self._keeps_step(made):
+                # both parts are books, but not of the step that split them: laid there
+                # (a part that is no book leaves the split in doubt, not its height)
+                if (self.cfg.split.lay and all(book is not None for _, book in made)
+                        and not self._keeps_step(made, heights)):
+                    made = [self._laid_part(rig, grads, pair, part, h, seam, desk_plane,
+                                            texture)
+                            for part, h, seam in zip(parts, heights, seams)]
+                if self._keeps_step(made, heights):
                     out += made  # type: ignore[arg-type]
                     continue
             out.append((pair, book))
         return out
 
-    def _keeps_step(self, made: list[tuple[Pair, BookDetection | None]]) -> bool:
+    def _keeps_step(self, made: list[tuple[Pair, BookDetection | None]],
+                    heights: tuple[float, float]) -> bool:
         """Whether both parts of a split made books whose heights differ by
-        ``split.min_step`` or more (each placed in 3D on its own, they keep the step that
-        split them)."""
+        ``split.min_step`` or more, the same way round as the ``heights`` (metres) that split
+        them (each placed in 3D on its own, they keep that step)."""
         books = [book for _, book in made]
-        return all(b is not None for b in books) and abs(
-            books[0].pose.size[2] - books[1].pose.size[2]  # type: ignore[union-attr]
-        ) >= self.cfg.split.min_step
+        if any(b is None for b in books):
+            return False
+        step = books[0].pose.size[2] - books[1].pose.size[2]  # type: ignore[union-attr]
+        return abs(step) >= self.cfg.split.min_step and \
+            np.sign(step) == np.sign(heights[0] - heights[1])
 
     def _fitted_part(self, rig: StereoRig, grads: dict[str, Gradients], pair: Pair,
                      part: dict[str, NDArray[np.float64]], desk_plane: NDArray[np.float64],
@@ -1504,16 +1512,19 @@ class Detector:
         return trial, fitted
 
     def _laid_part(self, rig: StereoRig, grads: dict[str, Gradients], pair: Pair,
-                   part: dict[str, NDArray[np.float64]], height: float,
+                   part: dict[str, NDArray[np.float64]], height: float, seam: int,
                    desk_plane: NDArray[np.float64],
                    texture: dict[str, NDArray[np.float32]] | None,
                    ) -> tuple[Pair, BookDetection | None]:
         """One part of a split as a book laid at ``height`` above the desk: the left
         image's quad on that plane (the right's lies on the union's outline there), its
-        sides moved onto the edges both images show within ``split.lay_reach``."""
+        sides but side ``seam`` moved onto the edges both images show within
+        ``split.lay_reach``. The seam stays where both images' fits put it: the taller
+        book's top edge beside it is an edge on this plane too, a few millimetres on."""
         P = on_plane(rig.Q_L, part["left"], desk_plane, height)
         reach = self.cfg.split.lay_reach
-        P = snap_sides(P, {"left": rig.Q_L, "right": rig.Q_R}, grads, reach=reach, inward=reach)
+        P = snap_sides(P, {"left": rig.Q_L, "right": rig.Q_R}, grads, reach=reach, inward=reach,
+                       sides=tuple(s for s in range(4) if s != seam))
         trial = _pair_at(rig, pair, P)
         shift = int(np.argmin(trial.left.sum(axis=1)))  # eq. 1 order, left image
         trial = replace(trial, left=np.roll(trial.left, -shift, axis=0),

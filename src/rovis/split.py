@@ -56,9 +56,9 @@ class SplitConfig:
     height, and where both sides are measured, their halves within ``max_spread`` of each
     other's, every half within ``height_range`` above the desk (a book's). The
     ``max_seams`` strongest seams of each axis are tried, the strongest that steps kept.
-    With ``lay``, parts whose own fits lose the step are laid at the heights that split
-    them, their sides moved onto edges within ``lay_reach``
-    (:meth:`rovis.pipeline.Detector._laid_part`).
+    With ``lay``, parts whose own fits pass the pose checks but lose the step (or turn it
+    round) are laid at the heights that split them, their sides but the seam moved onto the edges both images
+    show within ``lay_reach`` (the detector's split step).
 
     The reverse (:func:`join_halves`, with ``join``): two books whose mean heights lie
     within ``join_step`` of each other, sharing a whole side (both its ends within
@@ -126,6 +126,8 @@ def seam_profile(grad: Gradients, corners: NDArray[np.float64], k: int, t: NDArr
     return share[np.arange(len(t)), best], offsets[best]
 
 
+# the two parts of a split cover, each its corners (4, 2) per camera: the part at side k
+# of the cover first, then the part at side k + 2
 Parts = tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]]
 
 
@@ -170,9 +172,18 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
                         grads: dict[str, Gradients], strength: dict[str, float],
                         desk_plane: NDArray[np.float64], cfg: SplitConfig = SplitConfig(), *,
                         down: tuple[float, float] = (0.0, 1.0),
-                        ) -> tuple[Parts, tuple[float, float]] | None:
-    """:func:`split_union`'s parts and the heights above the desk (metres) their edges
-    along the cut sides stand at, each part's the mean over the measured sides."""
+                        ) -> tuple[Parts, tuple[float, float], tuple[int, int]] | None:
+    """:func:`split_union`, with what placed the parts.
+
+    Parameters are :func:`split_union`'s.
+
+    Returns
+    -------
+    (parts, heights, seam_sides) or None
+        The parts (:func:`split_union`'s); per part, the height above the desk (metres)
+        its edges along the two cut sides stand at (the mean over the sides measured); and
+        per part, the index of its side on the seam (side s runs from corner s to s + 1).
+    """
     P = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
     if not np.all(np.isfinite(P)):
         return None
@@ -219,7 +230,7 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
         else:
             heights = _step_in_height(corners, parts, k, Q, grads, desk_plane, cfg, down=down)
             if heights is not None:
-                return parts, heights
+                return parts, heights, ((k + 2) % 4, k)
     return None
 
 
@@ -308,9 +319,7 @@ def _seam_corners(grad: Gradients, c: NDArray[np.float64], k: int, t: float, off
     return ends[0], ends[1]
 
 
-def _step_in_height(corners: dict[str, NDArray[np.float64]],
-                    parts: tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]],
-                    k: int, Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
+def _step_in_height(corners: dict[str, NDArray[np.float64]], parts: Parts, k: int, Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
                     desk_plane: NDArray[np.float64], cfg: SplitConfig, *,
                     down: tuple[float, float]) -> tuple[float, float] | None:
     """The heights the sides the seam cuts (``k + 1`` and ``k + 3``) stand at either side
