@@ -767,9 +767,7 @@ class Detector:
             taken[dst].append(found[0])
             c = {src: source, dst: found[0]}
             # keep eq. 1's order in the left image, the right's corners corresponding
-            shift = int(np.argmin(c["left"].sum(axis=1)))
-            out.append(Pair(np.roll(c["left"], -shift, axis=0), np.roll(c["right"], -shift, axis=0),
-                            quality, 0.0, transferred=src))
+            out.append(_in_eq1_order(Pair(c["left"], c["right"], quality, 0.0, transferred=src)))
         return out
 
     def _from_pool(self, rig: StereoRig, segs: dict[str, Segmentation],
@@ -959,10 +957,9 @@ class Detector:
                     continue
             quality = float(min(pool["left"].support[i[a]].mean(),
                                 pool["right"].support[j[a]].mean()))
-            shift = int(np.argmin(left[a].sum(axis=1)))  # eq. 1 order, kept after refinement
-            pair, book, _ = self._reconstruct_or_why(
-                rig, Pair(np.roll(left[a], -shift, axis=0), np.roll(right[a], -shift, axis=0),
-                          quality, float(pp.error_px[a]), source="candidates"),
+            pair, book, _ = self._reconstruct_or_why(  # eq. 1 order, kept after refinement
+                rig, _in_eq1_order(Pair(left[a], right[a], quality, float(pp.error_px[a]),
+                                        source="candidates")),
                 desk_plane, texture)
             if book is None:
                 continue
@@ -1229,9 +1226,8 @@ class Detector:
             exact = Pair(geometry.project(rig.Q_L, P), geometry.project(rig.Q_R, P), float(fill),
                          0.0, source="height map")
             refined = [refine_quad(grads[cam], getattr(exact, cam)) for cam in ("left", "right")]
-            shift = int(np.argmin(refined[0].sum(axis=1)))  # eq. 1 order, kept after refinement
-            refined = replace(exact, left=np.roll(refined[0], -shift, axis=0),
-                              right=np.roll(refined[1], -shift, axis=0))
+            # eq. 1 order, kept after refinement
+            refined = _in_eq1_order(replace(exact, left=refined[0], right=refined[1]))
             pair, book = None, None
             for trial in (refined, exact):
                 pair, book, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
@@ -1334,9 +1330,7 @@ class Detector:
             new = fit_pair_extent({"left": pair.left, "right": pair.right}, Q, grads, strength,
                                   desk_plane, self.cfg.extent)
             if new is not None:
-                shift = int(np.argmin(new["left"].sum(axis=1)))  # eq. 1 order in the left image
-                bigger = replace(pair, left=np.roll(new["left"], -shift, axis=0),
-                                 right=np.roll(new["right"], -shift, axis=0))
+                bigger = _in_eq1_order(replace(pair, left=new["left"], right=new["right"]))
                 bigger, fitted, _ = self._reconstruct_or_why(rig, bigger, desk_plane, texture)
                 if fitted is not None:
                     before[len(out)] = (pair, book)
@@ -1503,9 +1497,7 @@ class Detector:
         completed in 3D, off in one image for the lower part), else as cut."""
         fitted = None
         for quads in ({cam: refine_quad(grads[cam], q) for cam, q in part.items()}, part):
-            shift = int(np.argmin(quads["left"].sum(axis=1)))  # eq. 1 order, left image
-            trial = replace(pair, left=np.roll(quads["left"], -shift, axis=0),
-                            right=np.roll(quads["right"], -shift, axis=0))
+            trial = _in_eq1_order(replace(pair, left=quads["left"], right=quads["right"]))
             trial, fitted, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
             if fitted is not None:
                 break
@@ -1525,11 +1517,8 @@ class Detector:
         reach = self.cfg.split.lay_reach
         P = snap_sides(P, {"left": rig.Q_L, "right": rig.Q_R}, grads, reach=reach, inward=reach,
                        sides=tuple(s for s in range(4) if s != seam))
-        trial = _pair_at(rig, pair, P)
-        shift = int(np.argmin(trial.left.sum(axis=1)))  # eq. 1 order, left image
-        trial = replace(trial, left=np.roll(trial.left, -shift, axis=0),
-                        right=np.roll(trial.right, -shift, axis=0))
-        trial, fitted, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
+        trial, fitted, _ = self._reconstruct_or_why(rig, _in_eq1_order(_pair_at(rig, pair, P)),
+                                                    desk_plane, texture)
         return trial, fitted
 
     def _joined(self, rig: StereoRig, found: list[tuple[Pair, BookDetection]],
@@ -1558,10 +1547,8 @@ class Detector:
                     alternative=first.alternative or second.alternative,
                     three_sided=first.three_sided or second.three_sided,
                     source=(first.source if first.source != "segmentation" else second.source))
-                shift = int(np.argmin(trial.left.sum(axis=1)))  # eq. 1 order, left image
-                trial = replace(trial, left=np.roll(trial.left, -shift, axis=0),
-                                right=np.roll(trial.right, -shift, axis=0))
-                trial, book, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
+                trial, book, _ = self._reconstruct_or_why(rig, _in_eq1_order(trial), desk_plane,
+                                                          texture)
                 if book is not None:
                     out[a] = (trial, book)
                     del out[b]
@@ -1720,6 +1707,14 @@ class Detector:
             reprojection_error_px=float(reproj.mean()),
             quality=pair.quality, stereo_error_px=pair.error_px,
             source="one image" if pair.transferred else pair.source), ""
+
+
+def _in_eq1_order(pair: Pair) -> Pair:
+    """``pair`` with both images' corners rolled so the left image's top-left corner
+    (smallest x + y) comes first: eq. 1's order there, the right's corners corresponding."""
+    shift = int(np.argmin(pair.left.sum(axis=1)))
+    return replace(pair, left=np.roll(pair.left, -shift, axis=0),
+                   right=np.roll(pair.right, -shift, axis=0))
 
 
 def _pair_at(rig: StereoRig, pair: Pair, P: NDArray[np.float64]) -> Pair:

@@ -57,8 +57,8 @@ class SplitConfig:
     other's, every half within ``height_range`` above the desk (a book's). The
     ``max_seams`` strongest seams of each axis are tried, the strongest that steps kept.
     With ``lay``, parts whose own fits pass the pose checks but lose the step (or turn it
-    round) are laid at the heights that split them, their sides but the seam moved onto the edges both images
-    show within ``lay_reach`` (the detector's split step).
+    round) are laid at the heights that split them, their sides but the seam moved onto the
+    edges both images show within ``lay_reach`` (the detector's split step).
 
     The reverse (:func:`join_halves`, with ``join``): two books whose mean heights lie
     within ``join_step`` of each other, sharing a whole side (both its ends within
@@ -244,9 +244,9 @@ def join_halves(A: NDArray[np.float64], B: NDArray[np.float64], desk_plane: NDAr
     lie at one height (within ``cfg.join_step``), share a whole side (both its ends
     within ``cfg.join_touch``), lie either side of it, and together make a rectangle
     (each corner's angle within ``cfg.join_angle_deg`` of 90°, the shared side's ends
-    within ``cfg.join_touch`` of the union's sides: no kink where the parts meet). Two books of one height and one size,
-    laid flush and aligned, pass these tests too (:func:`split_union` cannot tell them from
-    a band either).
+    within ``cfg.join_touch`` of the union's sides: no kink where the parts meet). Two
+    books of one height and one size, laid flush and aligned, pass these tests too
+    (:func:`split_union` cannot tell them from a band either).
 
     Parameters
     ----------
@@ -319,7 +319,8 @@ def _seam_corners(grad: Gradients, c: NDArray[np.float64], k: int, t: float, off
     return ends[0], ends[1]
 
 
-def _step_in_height(corners: dict[str, NDArray[np.float64]], parts: Parts, k: int, Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
+def _step_in_height(corners: dict[str, NDArray[np.float64]], parts: Parts, k: int,
+                    Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
                     desk_plane: NDArray[np.float64], cfg: SplitConfig, *,
                     down: tuple[float, float]) -> tuple[float, float] | None:
     """The heights the sides the seam cuts (``k + 1`` and ``k + 3``) stand at either side
