@@ -260,3 +260,10 @@ def test_the_pipeline_joins_a_cover_cut_at_its_band_switched_on_only():
     assert near(on)[0] < 0.01  # m
     assert len(near(on)) < 2 or near(on)[1] > 0.12  # no half of it left
     assert near(off)[0] > 0.02 and near(off)[1] < 0.06  # two halves, neither the cover
+
+
+@pytest.mark.parametrize("bad", [{"lay_reach": -0.01}, {"join_touch": -1.0},
+                                 {"join_step": -0.001}, {"join_angle_deg": 90.0}])
+def test_bad_split_settings_are_refused_by_name(bad):
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        SplitConfig(**bad)

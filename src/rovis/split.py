@@ -85,6 +85,15 @@ class SplitConfig:
     join_step: float = 0.003
     join_angle_deg: float = 8.0
 
+    def __post_init__(self) -> None:
+        problems = [name for name, ok in (
+            ("lay_reach", self.lay_reach >= 0),
+            ("join_touch", self.join_touch >= 0), ("join_step", self.join_step >= 0),
+            ("join_angle_deg", 0 <= self.join_angle_deg < 90)) if not ok]
+        if problems:
+            raise ValueError(f"split: bad {', '.join(problems)} (lay_reach, join_touch and "
+                             "join_step at least 0; join_angle_deg in [0, 90))")
+
 
 def seam_profile(grad: Gradients, corners: NDArray[np.float64], k: int, t: NDArray[np.float64],
                  threshold: float, *, reach_px: float = 2.0, trim: float = 0.15,
