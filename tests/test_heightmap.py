@@ -10,11 +10,12 @@ import numpy as np
 import pytest
 
 from rovis import geometry
-from rovis.heightmap import (HeightMap, HeightMapConfig, height_map, raised_covers,
-                             smooth_height_map)
+from rovis.heightmap import (HeightMap, HeightMapConfig, Rectification, dense_height_map,
+                             height_map, raised_covers, smooth_height_map, sweeps_confirm)
 from rovis.pipeline import DetectConfig, Detector, with_settings
 from rovis.sweep import high_pass
 from rovis.synth import render, sample_scene
+from rovis.synth.dataset import dataset_rig
 from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
 
@@ -164,6 +165,66 @@ def test_the_smooth_map_reads_a_cover_without_print(desk_book):
     np.testing.assert_allclose(sides, [0.15, 0.15, 0.22, 0.22], atol=0.03)
 
 
+def test_the_dense_map_reads_a_cover_without_print(desk_book):
+    sc, r, ideal = desk_book
+    rig = sc.rig
+    P = np.array(r.truth["books"][0]["corners"])
+    desk = np.asarray(r.truth["desk_plane"])
+    rect = Rectification.of(rig.K1, rig.K2, rig.R, rig.T, rig.image_size)
+    hm, Q_rect, dense = dense_height_map(ideal["left"], ideal["right"], rect,
+                                         rig.T_left_world, desk)
+    assert hm.height.shape == ideal["left"].shape
+    assert (dense.raised, dense.slab) == (dense.dense_raised, dense.dense_slab)
+    cover = np.zeros(hm.height.shape, np.uint8)
+    cv2.fillConvexPoly(cover, np.rint(geometry.project(Q_rect, P)).astype(np.int32), 1)
+    # Q_rect and the rectified image agree: the cover is as bright there as where Q_L
+    # puts it in the ideal image, 
+    rectified = cv2.remap(ideal["left"], *rect.maps["left"], cv2.INTER_LINEAR)
+    assert abs(rectified[cover > 0].mean()
+               - ideal["left"][_cover_mask(rig, P, cover.shape, inset_px=0)].mean()) < 2.0
+    inside = hm.height[cv2.erode(cover, np.ones((15, 15), np.uint8)) > 0]
+    # the cover's surface, all of it, at its height (the smooth sweep: half of it)
+    assert np.isfinite(inside).mean() > 0.9
+    assert abs(np.nanmedian(inside) - 0.03) < 0.004  # metres
+    assert np.mean(np.abs(inside - 0.03) <= dense.slab) > 0.6
+    far = cv2.dilate(cover, np.ones((121, 121), np.uint8)) == 0
+    around = hm.height[far & np.isfinite(hm.height)]
+    assert len(around) > 10000 and abs(np.median(around)) < 0.003
+    # and the rectangle cut from it lies on the book
+    covers = raised_covers(hm, Q_rect, desk, cfg=dense, erode_px=dense.dense_erode_px)
+    assert len(covers) >= 1
+    corners, h, _ = covers[0]
+    assert abs(h - 0.03) <= dense.slab
+    assert np.linalg.norm(corners.mean(axis=0)[:2] - P.mean(axis=0)[:2]) < 0.02
+
+
+def test_the_sweeps_back_a_rectangle_only_where_they_read_it_off_the_desk():
+    # the camera of test_erosion_shrinks_a_patch_by_its_pixels: 1 m above, looking down
+    Q = np.array([[1000.0, 0, -320, 320], [0, -1000.0, -240, 240], [0, 0, -1.0, 1.0]])
+    P = np.array([[-0.1, -0.05, 0.02], [0.1, -0.05, 0.02], [0.1, 0.05, 0.02],
+                  [-0.1, 0.05, 0.02]])
+    heights = np.arange(0.0, 0.075 + 1e-9, 0.003)
+
+    def map_of(level: float) -> HeightMap:
+        return HeightMap(np.full((480, 640), level, np.float32), heights, (0, 0, 640, 480))
+
+    def backed(*maps: HeightMap, max_desk: float = 0.2, min_read: float = 0.3) -> bool:
+        return sweeps_confirm(P, [(m, Q) for m in maps], max_desk=max_desk, min_read=min_read)
+
+    assert backed(map_of(0.02))
+    assert not backed(map_of(0.0))  # the desk
+    assert not backed(map_of(np.nan))  # nothing read: a faint desk the disparity map filled
+    # the cover's left end at the desk: a quarter of the inner part (u 238-402 px)
+    quarter = map_of(0.02)
+    quarter.height[:, :279] = 0.0
+    assert not backed(quarter) and backed(quarter, max_desk=0.3)
+    # a fifth of it read, at the cover's height: too little; either map may refuse it
+    fifth = map_of(np.nan)
+    fifth.height[:, 370:] = 0.02
+    assert not backed(fifth) and backed(fifth, min_read=0.15)
+    assert backed(fifth, map_of(0.02)) and not backed(map_of(0.02), map_of(0.0))
+
+
 def test_erosion_shrinks_a_patch_by_its_pixels():
     # a flat patch 200 × 120 px at 2 cm in a synthetic map, seen straight down at 1 m
     # a camera 1 m above the desk looking straight down: u = 320 + 1000 x / (1 - z), ...
@@ -194,3 +255,36 @@ def test_bad_settings_are_refused():
         HeightMapConfig(window_px=8)
     with pytest.raises(ValueError, match="heightmap"):
         HeightMapConfig(step=0.0)
+    with pytest.raises(ValueError, match="heightmap"):
+        HeightMapConfig(dense_block_px=4)
+    with pytest.raises(ValueError, match="heightmap"):
+        HeightMapConfig(dense_max_desk=1.5)
+    with pytest.raises(ValueError, match="heightmap"):
+        HeightMapConfig(dense_slab=0.0)
+    with pytest.raises(ValueError, match="heightmap"):
+        HeightMapConfig(dense_min_read=-0.1)
+
+
+def test_the_pipeline_finds_a_book_only_the_dense_map_raises():
+    # build/t1's scene 21 (`rovis synth build/t1 --protocol table1 --n 40 --seed 1`): its
+    # printed book 5 (16 x 12 x 3 cm) among five others; no quad and no sweep patch of
+    # it survives, but it stands out of the disparity map
+    rig = dataset_rig(1)
+    sc = sample_scene(np.random.default_rng([1, 1, 21]), rig=rig, lux=500.0,
+                      light="artificial", exposure="auto")
+    r = render(sc, np.random.default_rng([1, 9, 21]))
+    truth = [np.array(b["corners"]).mean(axis=0) for b in r.truth["books"]]
+    book = truth[5]
+
+    def near(res, point):  # the detections within 5 cm of a true centre
+        return [o for o in res.objects if np.linalg.norm(o.pose.center[:2] - point[:2]) < 0.05]
+
+    on = Detector(rig, DetectConfig()).detect(r.left, r.right)
+    (found,) = near(on, book)
+    assert found.source == "height map"
+    assert np.abs(found.pose.center - book).max() < 0.005  # metres, each axis
+    # nothing it adds lies away from every book
+    assert all(any(np.linalg.norm(o.pose.center[:2] - t[:2]) < 0.05 for t in truth)
+               for o in on.objects)
+    off = Detector(rig, with_settings(DetectConfig(), ["heightmap.dense=false"]))
+    assert near(off.detect(r.left, r.right), book) == []

@@ -51,6 +51,14 @@ class HeightMapConfig:
     ``snap_reach``, ``snap_inward``: how far each side may move onto an edge
     (:func:`snap_sides`); ``min_side``: a cover narrower than this is not taken (a printed
     band across a cover, more often than a whole one).
+
+    ``smooth*``: the half-resolution sweep for covers without fine print
+    (:func:`smooth_height_map`). ``dense*``: the semi-global disparity map
+    (:func:`dense_height_map`), last, for what no other step found: ``dense_block_px``, the
+    matching block (odd, pixels); slabs from ``dense_raised`` up, each ± ``dense_slab``, its
+    patches eroded by ``dense_erode_px``; a rectangle is taken where one of the two sweeps
+    reads heights over ``dense_min_read`` of its inner part or more and neither reads the
+    desk over more than ``dense_max_desk`` of its readings (:func:`sweeps_confirm`).
     """
 
     enabled: bool = True
@@ -72,17 +80,28 @@ class HeightMapConfig:
     smooth_window_px: int = 11
     smooth_min_texture: float = 0.3
     smooth_erode_px: int = 2
+    dense: bool = True
+    dense_block_px: int = 5
+    dense_raised: float = 0.010
+    dense_slab: float = 0.006
+    dense_erode_px: int = 2
+    dense_max_desk: float = 0.2
+    dense_min_read: float = 0.3
 
     def __post_init__(self) -> None:
         if not (0 < self.step and self.max_height > self.min_height + self.step
                 and self.window_px >= 3 and self.window_px % 2 == 1 and self.slab > 0
                 and self.smooth_window_px >= 3 and self.smooth_window_px % 2 == 1
-                and self.smooth_sigma_px > 0 and self.smooth_erode_px >= 0):
+                and self.smooth_sigma_px > 0 and self.smooth_erode_px >= 0
+                and self.dense_block_px >= 3 and self.dense_block_px % 2 == 1
+                and self.dense_slab > 0 and self.dense_erode_px >= 0
+                and 0.0 <= self.dense_max_desk <= 1.0 and 0.0 <= self.dense_min_read <= 1.0):
             raise ValueError("heightmap: step and slab must be positive, max_height above "
                              "min_height by more than a step, window_px and "
                              "smooth_window_px odd and >= 3, smooth_sigma_px positive, "
-                             "smooth_erode_px >= 0, "
-                             f"got {self}")
+                             "smooth_erode_px >= 0, dense_block_px odd and >= 3, "
+                             "dense_slab positive, dense_erode_px >= 0, dense_max_desk "
+                             f"and dense_min_read in [0, 1], got {self}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -222,6 +241,190 @@ def smooth_height_map(left: NDArray[np.uint8], right: NDArray[np.uint8], Q_L: Ar
     half = replace(cfg, window_px=cfg.smooth_window_px, min_texture=cfg.smooth_min_texture,
                    min_pixels=max(cfg.min_pixels // 4, 1))
     return height_map(band[0], band[1], Q_L2, Q_R2, desk_plane, box=box, cfg=half), Q_L2, half
+
+
+@dataclass(frozen=True, eq=False)
+class Rectification:
+    """Both ideal images turned into one row-aligned pair (:func:`cv2.stereoRectify`), for
+    semi-global matching (:func:`dense_height_map`).
+
+    It depends on the two cameras only, not on the world frame: made once per rig
+    (:meth:`of`).
+
+    Attributes
+    ----------
+    maps : dict
+        Per camera, the :func:`cv2.remap` maps (fixed point) from its ideal image.
+    K : ndarray, shape (3, 3)
+        Both rectified cameras' matrix, pixels (zero disparity at infinity).
+    R1 : ndarray, shape (3, 3)
+        Rotation from the left camera's frame to the rectified left camera's.
+    K_ideal : ndarray, shape (3, 3)
+        The left ideal image's camera matrix (where the ROI mask is drawn).
+    baseline : float
+        Metres.
+    """
+
+    maps: dict[str, tuple[NDArray[np.generic], NDArray[np.generic]]]
+    K: NDArray[np.float64]
+    R1: NDArray[np.float64]
+    K_ideal: NDArray[np.float64]
+    baseline: float
+
+    @classmethod
+    def of(cls, K1: ArrayLike, K2: ArrayLike, R: ArrayLike, T: ArrayLike,
+           size: tuple[int, int]) -> Rectification:
+        """The rectification of two ideal (undistorted) cameras ``K1``, ``K2`` (3, 3) with
+        ``X_right = R @ X_left + T`` (metres), images ``size`` = (width, height)."""
+        K1, K2 = np.asarray(K1, np.float64), np.asarray(K2, np.float64)
+        none = np.zeros((1, 5))  # ideal images: no distortion left
+        R1, R2, P1, P2, _, _, _ = cv2.stereoRectify(
+            K1, none, K2, none, size, np.asarray(R, np.float64),
+            np.asarray(T, np.float64).reshape(3, 1), flags=cv2.CALIB_ZERO_DISPARITY, alpha=0)
+        maps = {cam: cv2.initUndistortRectifyMap(K, none, Rc, P, size, cv2.CV_16SC2)
+                for cam, K, Rc, P in (("left", K1, R1, P1), ("right", K2, R2, P2))}
+        return cls(maps=maps, K=P1[:, :3].copy(), R1=R1, K_ideal=K1,
+                   baseline=float(abs(P2[0, 3] / P2[0, 0])))
+
+    def projection(self, T_left_world: ArrayLike) -> NDArray[np.float64]:
+        """World → rectified left pixel projection (3, 4), for the left camera's pose
+        ``T_left_world`` (4, 4, world → left camera)."""
+        return self.K @ self.R1 @ np.asarray(T_left_world, np.float64)[:3]
+
+
+def dense_height_map(left: NDArray[np.uint8], right: NDArray[np.uint8], rect: Rectification,
+                     T_left_world: ArrayLike, desk_plane: ArrayLike, *,
+                     mask: NDArray[np.uint8] | None = None,
+                     cfg: HeightMapConfig = HeightMapConfig(),
+                     ) -> tuple[HeightMap, NDArray[np.float64], HeightMapConfig]:
+    """Heights above the desk from a semi-global disparity map (:class:`cv2.StereoSGBM`).
+
+    The plane sweeps compare windows on their own; a cover of the desk's colour or a plain
+    one has too little texture for a window to tell its height, and the smooth sweep's
+    wide windows mix it with the desk around it. Semi-global matching carries the match
+    from a cover's faint mottle and edges across it (a penalty on changes of disparity
+    between neighbours), so the cover comes out as one raised region. Its heights are
+    noisier than the sweeps' (a few millimetres), so the pipeline only cuts covers from
+    it, last, where nothing else found a book (:meth:`rovis.pipeline.Detector._from_dense_map`).
+
+    Parameters
+    ----------
+    left, right : ndarray, shape (H, W), uint8
+        Both ideal images.
+    rect : Rectification
+        Of the rig whose ideal images these are.
+    T_left_world : array_like, shape (4, 4)
+        World → left camera.
+    desk_plane : array_like, shape (4,)
+        ``[nx, ny, nz, d]``, world, normal up.
+    mask : ndarray, shape (H, W), uint8, optional
+        The ROI in the left ideal image (non-zero inside); the whole image by default.
+
+    Returns
+    -------
+    (HeightMap, Q_rect, cfg_dense)
+        The map over the rectified left image (NaN where SGBM found no disparity or
+        outside the ROI), that image's world → pixel projection (for
+        :func:`raised_covers`) and the settings to cut covers from it with.
+    """
+    size = (left.shape[1], left.shape[0])
+    heights = np.arange(cfg.min_height, cfg.max_height + 1e-9, cfg.step)
+    dense = replace(cfg, raised=cfg.dense_raised, slab=cfg.dense_slab)
+    height = np.full(left.shape, np.nan, np.float32)
+    Q_rect = rect.projection(T_left_world)
+    # the ROI in the rectified frame: the left camera only turned (R1), so a homography
+    if mask is None:
+        roi = np.full(left.shape, 255, np.uint8)
+    else:
+        H = rect.K @ rect.R1 @ np.linalg.inv(rect.K_ideal)
+        roi = cv2.warpPerspective(mask, H, size, flags=cv2.INTER_NEAREST)
+    x, y, w, h = cv2.boundingRect(roi)
+    box = (x, y, x + w, y + h)
+    if w == 0 or h == 0:
+        return HeightMap(height, heights, box), Q_rect, dense
+    # the desk plane in the rectified left camera: n·X + d = height above it
+    T = np.eye(4)
+    T[:3, :3] = rect.R1
+    T = T @ np.asarray(T_left_world, np.float64)  # world → rectified left camera
+    plane = np.asarray(desk_plane, np.float64) / np.linalg.norm(desk_plane[:3])
+    n = T[:3, :3] @ plane[:3]
+    d = plane[3] - n @ T[:3, 3]
+    f, cx, cy = rect.K[0, 0], rect.K[0, 2], rect.K[1, 2]
+
+    def slope(u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
+        # n · ray for the ray (u - cx, v - cy, f) / f through each pixel
+        return (n[0] * (u - cx) + n[1] * (v - cy)) / f + n[2]
+
+    # the disparities the ROI's corners have from max_height below the desk to twice it
+    # above (a plane's disparity is affine in the pixel: its extremes are at the corners).
+    # Beyond the heights books have: a pixel SGBM cannot match lands anywhere in the
+    # range, and a wide range puts most of those outside every slab.
+    u = np.array([x, x + w, x, x + w], np.float64)
+    v = np.array([y, y, y + h, y + h], np.float64)
+    disparity = [f * rect.baseline * slope(u, v) / (level - d)
+                 for level in (-cfg.max_height, 2 * cfg.max_height)]
+    disparity = np.concatenate(disparity)
+    disparity = disparity[np.isfinite(disparity) & (disparity > 0)]
+    if len(disparity) == 0:  # the desk is not in front of the camera here
+        return HeightMap(height, heights, box), Q_rect, dense
+    lo = max(int(np.floor(disparity.min())) - 2, 0)
+    count = int(np.ceil((disparity.max() + 2 - lo) / 16.0)) * 16
+    # both images cut to the ROI's rows and the columns its matches can reach
+    c0 = max(x - lo - count, 0)
+    L, R = (cv2.remap(img, *(m[y:y + h, c0:x + w] for m in rect.maps[cam]), cv2.INTER_LINEAR)
+            for cam, img in (("left", left), ("right", right)))
+    block = cfg.dense_block_px
+    # OpenCV's own suggested smoothness penalties for one channel
+    sgbm = cv2.StereoSGBM_create(minDisparity=lo, numDisparities=count, blockSize=block,
+                                 P1=8 * block * block, P2=32 * block * block,
+                                 uniquenessRatio=5, speckleWindowSize=100, speckleRange=2,
+                                 mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)
+    disp = sgbm.compute(L, R).astype(np.float32) / 16.0  # fixed point, 4 fractional bits
+    disp = disp[:, x - c0:]
+    vv, uu = np.mgrid[y:y + h, x:x + w].astype(np.float64)
+    ok = (disp > lo) & (roi[y:y + h, x:x + w] > 0)  # SGBM marks no match below lo
+    ray = slope(uu, vv)
+    # SGBM's disparities come out a few tenths of a pixel off as a whole (measured: the
+    # desk 4 mm low, and the covers with it); the desk, known from the marker and most of
+    # the workspace, gives the offset: the median of its pixels' residuals
+    residual = disp - f * rect.baseline * ray / (-d)
+    on_desk = ok & (np.abs(residual) < 1.0)
+    if np.count_nonzero(on_desk) > 1000:
+        disp = disp - np.float32(np.median(residual[on_desk]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        above = ray * (f * rect.baseline / disp) + d
+    height[y:y + h, x:x + w] = np.where(ok, above, np.nan).astype(np.float32)
+    return HeightMap(height, heights, box), Q_rect, dense
+
+
+def sweeps_confirm(P: ArrayLike, maps: list[tuple[HeightMap, NDArray[np.float64]]], *,
+                   max_desk: float, min_read: float, level: float = 0.004,
+                   inner: float = 0.8, min_readings: int = 20) -> bool:
+    """Whether the plane sweeps back a rectangle the disparity map raised.
+
+    Semi-global matching carries a book's disparity on into the desk beside it where the
+    desk shows little texture (a shadow, a dim scene) and fills a pocket of desk between
+    books with their heights. The plane sweeps compare each window on their own: there
+    they read nothing, or the desk. Each map ``(HeightMap, Q)`` is read over the inner part
+    (``inner`` of the size, about the centre) of the rectangle ``P`` (4, 3) projected by
+    ``Q``. The rectangle is backed where some map reads heights over at least ``min_read``
+    of that part and no map with ``min_readings`` or more reads the desk (within ``level``
+    metres of it) over more than ``max_desk`` of its readings.
+    """
+    P = np.asarray(P, np.float64)
+    read_enough = False
+    for hm, Q in maps:
+        q = geometry.project(Q, P)
+        q = q.mean(axis=0) + inner * (q - q.mean(axis=0))
+        inside = np.zeros(hm.height.shape, np.uint8)
+        cv2.fillConvexPoly(inside, np.round(q).astype(np.int32), 1)
+        part = hm.height[inside > 0]
+        read = part[np.isfinite(part)]
+        if len(part) and len(read) >= min_read * len(part):
+            read_enough = True
+        if len(read) >= min_readings and np.mean(read < level) > max_desk:
+            return False
+    return read_enough
 
 
 def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,

@@ -20,7 +20,7 @@ from __future__ import annotations
 import time
 from collections import Counter
 from dataclasses import dataclass, field, fields, is_dataclass, replace
-from typing import Any, Literal, Sequence
+from typing import Any, Callable, Literal, Sequence
 
 import cv2
 import numpy as np
@@ -32,8 +32,9 @@ from rovis.extent import (CompleteConfig, ExtentConfig, FacingConfig, SideHeight
                           _foot_is_edge, _grow_side, _moved, _on_desk, _side_scores,
                           complete_open, fit_pair_extent, height_from_sides, lift_foot,
                           settle_facing_sides)
-from rovis.heightmap import (HeightMap, HeightMapConfig, height_map, raised_covers,
-                             smooth_height_map, snap_sides)
+from rovis.heightmap import (HeightMap, HeightMapConfig, Rectification, dense_height_map,
+                             height_map, raised_covers, smooth_height_map, snap_sides,
+                             sweeps_confirm)
 from rovis.imageio import to_gray_u8
 from rovis.results import BookDetection, FrameResult, SegmentationInfo
 from rovis.segment import CascadeController, SegmentConfig, Segmentation, gradients
@@ -309,6 +310,7 @@ class Detector:
         # Raw → ideal maps, computed once: for each ideal pixel, where to read the raw image.
         self._view = IdealView.of(rig, full=self.cfg.full_view)
         self._view_rigs: tuple[bytes, StereoRig] | None = None  # _view_rig's last
+        self._rectification: tuple[bytes, Rectification] | None = None  # _rectified's last
         self._controllers = {cam: CascadeController(self.cfg.segment) for cam in ("left", "right")}
         # The last ROI per camera: a registered rig's (or a still marker's) is the same
         # every frame, so it is drawn once.
@@ -419,6 +421,11 @@ class Detector:
             # foot in both images, where nothing else found a book, lifted
             found += self._lifted(rig, grads, books, found, desk_plane, texture)
             lap("pose")
+        if self.cfg.heightmap.dense and maps and desk_plane is not None:
+            # beyond the paper: a cover of the desk's colour, or a plain one, that stands
+            # out in a dense disparity map where nothing else found a book
+            found += self._from_dense_map(rig, grads, ideal, found, desk_plane, texture, maps)
+            lap("heightmap")
         # a failed pair whose quad became a book through the one-image search is not lost
         dropped = [(why, pair.left, pair.right) for pair, book, why in books
                    if book is None and not any(
@@ -650,6 +657,15 @@ class Detector:
         if self._view_rigs is None or self._view_rigs[0] != key:
             self._view_rigs = (key, self._view.rig(rig))
         return self._view_rigs[1]
+
+    def _rectified(self, rig: StereoRig) -> Rectification:
+        """The row-aligned pair of ``rig``'s ideal images (:class:`Rectification`), made
+        once per rig (it does not depend on the world frame)."""
+        size = self._view.size
+        key = b"".join(np.asarray(a, np.float64).tobytes() for a in (rig.K1, rig.K2, rig.R, rig.T, size))
+        if self._rectification is None or self._rectification[0] != key:
+            self._rectification = (key, Rectification.of(rig.K1, rig.K2, rig.R, rig.T, size))
+        return self._rectification[1]
 
     def _texture(self, ideal: dict[str, NDArray[np.uint8]]) -> dict[str, NDArray[np.float32]]:
         """Each ideal image's print (:func:`rovis.sweep.high_pass`), none beyond the raw
@@ -1186,9 +1202,11 @@ class Detector:
                          found: list[tuple[Pair, BookDetection]], desk_plane: NDArray[np.float64],
                          texture: dict[str, NDArray[np.float32]],
                          maps: list[tuple[HeightMap, NDArray[np.float64], HeightMapConfig, int]],
+                         refuse: Callable[[NDArray[np.float64]], bool] | None = None,
                          ) -> list[tuple[Pair, BookDetection]]:
         """Books where no book is yet, from the covers that stand out of the desk in a
-        height map of the workspace (:mod:`rovis.heightmap`).
+        height map of the workspace (:mod:`rovis.heightmap`); ``refuse``, if given, turns
+        down a rectangle (world corners, (4, 3)) before anything is done with it.
 
         Each rectangle's height is refined by its print (a fine sweep), its sides are moved
         onto the edges both images show (:func:`rovis.heightmap.snap_sides`), and the
@@ -1206,6 +1224,8 @@ class Detector:
         taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
         out: list[tuple[Pair, BookDetection]] = []
         for P, height, fill in rects:
+            if refuse is not None and refuse(P):
+                continue
             # the corners in eq. 1's order in the left image
             left = geometry.project(rig.Q_L, P)
             order = [int(np.argmin(np.linalg.norm(left - c, axis=1))) for c in order_corners(left)]
@@ -1241,6 +1261,33 @@ class Detector:
             taken["right"].append(pair.right)
             out.append((pair, book))
         return out
+
+    def _from_dense_map(self, rig: StereoRig, grads: dict[str, Gradients],
+                        ideal: dict[str, NDArray[np.uint8]],
+                        found: list[tuple[Pair, BookDetection]], desk_plane: NDArray[np.float64],
+                        texture: dict[str, NDArray[np.float32]],
+                        maps: list[tuple[HeightMap, NDArray[np.float64], HeightMapConfig, int]],
+                        ) -> list[tuple[Pair, BookDetection]]:
+        """Books where no book is yet, from the covers that stand out of the desk in the
+        semi-global disparity map (:func:`rovis.heightmap.dense_height_map`), taken as
+        the height map's are (:meth:`_from_height_map`), last.
+
+        That map's smoothing carries a book's height on over a faint desk beside it and
+        into a pocket of desk between books: a rectangle the plane sweeps (``maps``) read
+        nothing over, or the desk, is no cover (:func:`rovis.heightmap.sweeps_confirm`).
+        Its heights are a few millimetres noisier than the sweeps', so the later steps
+        that read heights (``trim``) do not read it.
+        """
+        cfg = self.cfg.heightmap
+        dense, Q_rect, dense_cfg = dense_height_map(
+            ideal["left"], ideal["right"], self._rectified(rig), rig.T_left_world, desk_plane,
+            mask=grads["left"].mask, cfg=cfg)
+        sweeps = [(hm, Q) for hm, Q, _, _ in maps]
+        return self._from_height_map(rig, grads, found, desk_plane, texture,
+                                     [(dense, Q_rect, dense_cfg, cfg.dense_erode_px)],
+                                     refuse=lambda P: not sweeps_confirm(
+                                         P, sweeps, max_desk=cfg.dense_max_desk,
+                                         min_read=cfg.dense_min_read))
 
     def _alternative(self, rig: StereoRig, segs: dict[str, Segmentation],
                      grads: dict[str, Gradients], ideal: dict[str, NDArray[np.uint8]],
