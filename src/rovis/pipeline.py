@@ -425,7 +425,7 @@ class Detector:
             # beyond the paper: a cover of the desk's colour, or a plain one, that stands
             # out in a dense disparity map where nothing else found a book
             found += self._from_dense_map(rig, grads, ideal, found, desk_plane, texture, maps)
-            lap("heightmap")
+            lap("dense")
         # a failed pair whose quad became a book through the one-image search is not lost
         dropped = [(why, pair.left, pair.right) for pair, book, why in books
                    if book is None and not any(
