@@ -8,8 +8,10 @@ from dataclasses import replace
 import cv2
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from rovis import geometry
+from rovis.calib import StereoRig
 from rovis.heightmap import (HeightMap, HeightMapConfig, Rectification, dense_height_map,
                              height_map, raised_covers, smooth_height_map, sweeps_confirm)
 from rovis.pipeline import DetectConfig, Detector, with_settings
@@ -178,7 +180,7 @@ def test_the_dense_map_reads_a_cover_without_print(desk_book):
     cover = np.zeros(hm.height.shape, np.uint8)
     cv2.fillConvexPoly(cover, np.rint(geometry.project(Q_rect, P)).astype(np.int32), 1)
     # Q_rect and the rectified image agree: the cover is as bright there as where Q_L
-    # puts it in the ideal image, 
+    # puts it in the ideal image
     rectified = cv2.remap(ideal["left"], *rect.maps["left"], cv2.INTER_LINEAR)
     assert abs(rectified[cover > 0].mean()
                - ideal["left"][_cover_mask(rig, P, cover.shape, inset_px=0)].mean()) < 2.0
@@ -288,3 +290,72 @@ def test_the_pipeline_finds_a_book_only_the_dense_map_raises():
                for o in on.objects)
     off = Detector(rig, with_settings(DetectConfig(), ["heightmap.dense=false"]))
     assert near(off.detect(r.left, r.right), book) == []
+
+
+def test_the_dense_map_on_a_rig_not_rectified_already():
+    # every synthetic rig has R = I and K1 = K2; this one's right camera is turned 1.8°,
+    # 3 mm off the row and of its own focal length and centre
+    sc = sample_scene(13, lux=300.0, n_books=0)
+    base = sc.rig
+    R = Rotation.from_euler("yxz", [-1.5, 0.6, 0.8], degrees=True).as_matrix()
+    K2 = base.K2 * np.array([[1.02], [1.02], [1.0]]) + np.array([[0, 0, 6.0], [0, 0, 0], [0, 0, 0]])
+    rig = StereoRig.from_arrays(K1=base.K1, D1=base.D1, K2=K2, D2=base.D2, R=R,
+                                T=-R @ np.array([0.12, -0.003, 0.004]),
+                                image_size=base.image_size, T_world_left=base.T_world_left,
+                                world_frame=base.world_frame)
+    b = Book(center=(0.42, 0.30, 0.03), yaw_deg=20.0, size=(0.22, 0.15, 0.03),
+             cover=CoverSpec(kind="desk", albedo=0.42, seed=5))
+    sc = replace(sc, rig=rig, books=(b,), papers=(), mugs=(), pens=(), cables=())
+    r = render(sc, 13)
+    P = np.array(r.truth["books"][0]["corners"])
+    rect = Rectification.of(rig.K1, rig.K2, rig.R, rig.T, rig.image_size)
+    assert rect.baseline == pytest.approx(np.linalg.norm([0.12, -0.003, 0.004]), abs=1e-6)
+    # each rectified pixel comes from where Q_L and Q_R put its world point
+    Q_rect = rect.projection(rig.T_left_world)
+    Z = (rect.R_rect_left @ rig.T_left_world[:3] @ np.c_[P, np.ones(4)].T)[2]
+    px = {"left": geometry.project(Q_rect, P)}
+    px["right"] = px["left"] - np.c_[rect.K[0, 0] * rect.baseline / Z, np.zeros(4)]
+    for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R)):
+        to_ideal = np.dstack(cv2.convertMaps(*rect.maps[cam], cv2.CV_32FC1))
+        u, v = np.rint(px[cam]).astype(int).T
+        moved = px[cam] - np.c_[u, v]  # the map is read at the nearest pixel
+        expected = geometry.project(Q, P)
+        np.testing.assert_allclose(to_ideal[v, u] + moved, expected, atol=0.1)  # pixels
+    ideal = ideal_images(rig, r)
+    hm, Q_map, _ = dense_height_map(ideal["left"], ideal["right"], rect, rig.T_left_world,
+                                    np.asarray(r.truth["desk_plane"]))
+    np.testing.assert_allclose(Q_map, Q_rect)
+    cover = np.zeros(hm.height.shape, np.uint8)
+    cv2.fillConvexPoly(cover, np.rint(geometry.project(Q_rect, P)).astype(np.int32), 1)
+    inside = hm.height[cv2.erode(cover, np.ones((15, 15), np.uint8)) > 0]
+    assert abs(np.nanmedian(inside) - 0.03) < 0.004  # metres
+    far = cv2.dilate(cover, np.ones((121, 121), np.uint8)) == 0
+    assert abs(np.nanmedian(hm.height[far])) < 0.004
+
+
+def test_the_dense_map_of_what_it_cannot_match_is_empty_and_bad_input_is_named(desk_book):
+    sc, r, ideal = desk_book
+    rig = sc.rig
+    desk = np.asarray(r.truth["desk_plane"])
+    rect = Rectification.of(rig.K1, rig.K2, rig.R, rig.T, rig.image_size)
+
+    def dense(mask=None, plane=desk, left=ideal["left"]):
+        return dense_height_map(left, ideal["right"], rect, rig.T_left_world, plane,
+                                mask=mask)[0]
+
+    # an ROI at the left border narrower than the disparities (SGBM fails on such a crop)
+    strip = np.zeros(ideal["left"].shape, np.uint8)
+    strip[300:400, :20] = 255
+    assert not np.isfinite(dense(strip).height).any()
+    assert not np.isfinite(dense(np.zeros_like(strip)).height).any()  # an empty ROI
+    # a desk 5 cm in front of the left camera, facing it, needs 700 px of disparity and
+    # more (z = 0.05 m in the camera's frame: the plane n·X + d = 0.05 - z)
+    near = -np.r_[rig.T_left_world[2, :3], rig.T_left_world[2, 3] - 0.05]
+    assert not np.isfinite(dense(plane=near).height).any()
+    # a rig whose right camera is above the left: no rows to match along
+    up = Rectification.of(rig.K1, rig.K2, np.eye(3), [0.0, -0.12, 0.0], rig.image_size)
+    assert up.baseline == 0.0
+    with pytest.raises(ValueError, match="dense_height_map"):
+        dense(left=ideal["left"][:, :500])
+    with pytest.raises(ValueError, match="dense_height_map"):
+        dense(mask=strip[:, :500])

@@ -106,7 +106,8 @@ class HeightMapConfig:
 
 @dataclass(frozen=True, eq=False)
 class HeightMap:
-    """Height above the desk per left ideal pixel, where the two images agree.
+    """Height above the desk per left image pixel (ideal, or rectified for
+    :func:`dense_height_map`), where the two images agree.
 
     Attributes
     ----------
@@ -254,20 +255,22 @@ class Rectification:
     Attributes
     ----------
     maps : dict
-        Per camera, the :func:`cv2.remap` maps (fixed point) from its ideal image.
+        Per camera, the :func:`cv2.remap` maps from its ideal image, fixed point: shape
+        (H, W, 2) int16 and (H, W) uint16.
     K : ndarray, shape (3, 3)
         Both rectified cameras' matrix, pixels (zero disparity at infinity).
-    R1 : ndarray, shape (3, 3)
+    R_rect_left : ndarray, shape (3, 3)
         Rotation from the left camera's frame to the rectified left camera's.
     K_ideal : ndarray, shape (3, 3)
         The left ideal image's camera matrix (where the ROI mask is drawn).
     baseline : float
-        Metres.
+        Metres; 0 where the right camera is not to the left camera's right along the
+        rows (a vertical or swapped rig: no dense map).
     """
 
     maps: dict[str, tuple[NDArray[np.generic], NDArray[np.generic]]]
     K: NDArray[np.float64]
-    R1: NDArray[np.float64]
+    R_rect_left: NDArray[np.float64]
     K_ideal: NDArray[np.float64]
     baseline: float
 
@@ -283,13 +286,19 @@ class Rectification:
             np.asarray(T, np.float64).reshape(3, 1), flags=cv2.CALIB_ZERO_DISPARITY, alpha=0)
         maps = {cam: cv2.initUndistortRectifyMap(K, none, Rc, P, size, cv2.CV_16SC2)
                 for cam, K, Rc, P in (("left", K1, R1, P1), ("right", K2, R2, P2))}
-        return cls(maps=maps, K=P1[:, :3].copy(), R1=R1, K_ideal=K1,
-                   baseline=float(abs(P2[0, 3] / P2[0, 0])))
+        # P2[0, 3] = -f * baseline for a right camera along +x; a vertical rig's shift is
+        # in P2[1, 3] instead, and its rows are no epipolar lines for SGBM
+        along_rows = P2[0, 3] < 0 and abs(P2[1, 3]) < 1e-9 * abs(P2[0, 3])
+        return cls(maps=maps, K=P1[:, :3].copy(), R_rect_left=R1, K_ideal=K1,
+                   baseline=float(-P2[0, 3] / P2[0, 0]) if along_rows else 0.0)
 
     def projection(self, T_left_world: ArrayLike) -> NDArray[np.float64]:
         """World → rectified left pixel projection (3, 4), for the left camera's pose
         ``T_left_world`` (4, 4, world → left camera)."""
-        return self.K @ self.R1 @ np.asarray(T_left_world, np.float64)[:3]
+        return self.K @ self.R_rect_left @ np.asarray(T_left_world, np.float64)[:3]
+
+
+MAX_DISPARITY = 512  # pixels: a desk so near is not a workspace (0.19 m for the synthetic rig)
 
 
 def dense_height_map(left: NDArray[np.uint8], right: NDArray[np.uint8], rect: Rectification,
@@ -323,32 +332,46 @@ def dense_height_map(left: NDArray[np.uint8], right: NDArray[np.uint8], rect: Re
     Returns
     -------
     (HeightMap, Q_rect, cfg_dense)
-        The map over the rectified left image (NaN where SGBM found no disparity or
-        outside the ROI), that image's world → pixel projection (for
-        :func:`raised_covers`) and the settings to cut covers from it with.
+        The map over the rectified left image (its ``height`` and ``box`` in rectified
+        pixels; NaN where SGBM found no disparity, outside the ROI, and everywhere for an
+        empty ROI, a rig not along the rows or a desk too near), that image's world →
+        pixel projection (for :func:`raised_covers`) and the settings to cut covers from
+        it with.
+
+    Raises
+    ------
+    ValueError
+        Images (or a mask) not uint8 of the rectification's size.
     """
+    shape = rect.maps["left"][0].shape[:2]
+    if left.shape != shape or right.shape != shape or left.dtype != np.uint8 \
+            or right.dtype != np.uint8 or (mask is not None and mask.shape != shape):
+        raise ValueError(f"dense_height_map: expected uint8 images (and a mask) of the "
+                         f"rectification's shape {shape}, got {left.dtype} {left.shape}, "
+                         f"{right.dtype} {right.shape}"
+                         + ("" if mask is None else f", mask {mask.shape}"))
     size = (left.shape[1], left.shape[0])
     heights = np.arange(cfg.min_height, cfg.max_height + 1e-9, cfg.step)
     dense = replace(cfg, raised=cfg.dense_raised, slab=cfg.dense_slab)
     height = np.full(left.shape, np.nan, np.float32)
     Q_rect = rect.projection(T_left_world)
-    # the ROI in the rectified frame: the left camera only turned (R1), so a homography
+    # the ROI in the rectified frame: the left camera only turned, so a homography
     if mask is None:
         roi = np.full(left.shape, 255, np.uint8)
     else:
-        H = rect.K @ rect.R1 @ np.linalg.inv(rect.K_ideal)
+        H = rect.K @ rect.R_rect_left @ np.linalg.inv(rect.K_ideal)
         roi = cv2.warpPerspective(mask, H, size, flags=cv2.INTER_NEAREST)
     x, y, w, h = cv2.boundingRect(roi)
     box = (x, y, x + w, y + h)
-    if w == 0 or h == 0:
+    if w == 0 or h == 0 or rect.baseline <= 0:
         return HeightMap(height, heights, box), Q_rect, dense
     # the desk plane in the rectified left camera: n·X + d = height above it
-    T = np.eye(4)
-    T[:3, :3] = rect.R1
-    T = T @ np.asarray(T_left_world, np.float64)  # world → rectified left camera
+    T_rect_world = np.eye(4)
+    T_rect_world[:3, :3] = rect.R_rect_left
+    T_rect_world = T_rect_world @ np.asarray(T_left_world, np.float64)
     plane = np.asarray(desk_plane, np.float64) / np.linalg.norm(desk_plane[:3])
-    n = T[:3, :3] @ plane[:3]
-    d = plane[3] - n @ T[:3, 3]
+    n = T_rect_world[:3, :3] @ plane[:3]
+    d = plane[3] - n @ T_rect_world[:3, 3]
     f, cx, cy = rect.K[0, 0], rect.K[0, 2], rect.K[1, 2]
 
     def slope(u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -371,26 +394,34 @@ def dense_height_map(left: NDArray[np.uint8], right: NDArray[np.uint8], rect: Re
     count = int(np.ceil((disparity.max() + 2 - lo) / 16.0)) * 16
     # both images cut to the ROI's rows and the columns its matches can reach
     c0 = max(x - lo - count, 0)
-    L, R = (cv2.remap(img, *(m[y:y + h, c0:x + w] for m in rect.maps[cam]), cv2.INTER_LINEAR)
-            for cam, img in (("left", left), ("right", right)))
+    if lo + count > MAX_DISPARITY or x + w - c0 <= lo + count:
+        # a desk a few centimetres from the camera, or an ROI at the image's left border
+        # narrower than the range: no match to make (and SGBM fails on such a crop)
+        return HeightMap(height, heights, box), Q_rect, dense
+    crop_left, crop_right = (
+        cv2.remap(img, *(m[y:y + h, c0:x + w] for m in rect.maps[cam]), cv2.INTER_LINEAR)
+        for cam, img in (("left", left), ("right", right)))
     block = cfg.dense_block_px
     # OpenCV's own suggested smoothness penalties for one channel
     sgbm = cv2.StereoSGBM_create(minDisparity=lo, numDisparities=count, blockSize=block,
                                  P1=8 * block * block, P2=32 * block * block,
                                  uniquenessRatio=5, speckleWindowSize=100, speckleRange=2,
                                  mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)
-    disp = sgbm.compute(L, R).astype(np.float32) / 16.0  # fixed point, 4 fractional bits
+    # fixed point, 4 fractional bits; no match is (lo - 1) · 16
+    disp = sgbm.compute(crop_left, crop_right).astype(np.float32) / 16.0
     disp = disp[:, x - c0:]
-    vv, uu = np.mgrid[y:y + h, x:x + w].astype(np.float64)
-    ok = (disp > lo) & (roi[y:y + h, x:x + w] > 0)  # SGBM marks no match below lo
-    ray = slope(uu, vv)
-    # SGBM's disparities come out a few tenths of a pixel off as a whole (measured: the
-    # desk 4 mm low, and the covers with it); the desk, known from the marker and most of
-    # the workspace, gives the offset: the median of its pixels' residuals
+    ok = (disp > lo) & (roi[y:y + h, x:x + w] > 0)
+    ray = slope(np.arange(x, x + w, dtype=np.float64)[None, :],
+                np.arange(y, y + h, dtype=np.float64)[:, None])  # (h, w)
+    # On weak texture (a plain desk, a desk-toned cover) the 3-way mode's disparities come
+    # out a few tenths of a pixel low (measured: tests' desk 4 mm low, its cover with it).
+    # The desk, known from the marker and most of the workspace, gives the offset: the
+    # median residual of the pixels within a pixel of its disparity.
     residual = disp - f * rect.baseline * ray / (-d)
     on_desk = ok & (np.abs(residual) < 1.0)
     if np.count_nonzero(on_desk) > 1000:
         disp = disp - np.float32(np.median(residual[on_desk]))
+    ok &= disp > 0
     with np.errstate(divide="ignore", invalid="ignore"):
         above = ray * (f * rect.baseline / disp) + d
     height[y:y + h, x:x + w] = np.where(ok, above, np.nan).astype(np.float32)
@@ -410,6 +441,20 @@ def sweeps_confirm(P: ArrayLike, maps: list[tuple[HeightMap, NDArray[np.float64]
     ``Q``. The rectangle is backed where some map reads heights over at least ``min_read``
     of that part and no map with ``min_readings`` or more reads the desk (within ``level``
     metres of it) over more than ``max_desk`` of its readings.
+
+    Parameters
+    ----------
+    P : array_like, shape (4, 3)
+        World corners of the rectangle, metres.
+    maps : list of (HeightMap, ndarray (3, 4))
+        Each sweep's map and the world → pixel projection of its image.
+    max_desk, min_read : float
+        Shares, 0-1.
+
+    Returns
+    -------
+    bool
+        True where the sweeps back the rectangle.
     """
     P = np.asarray(P, np.float64)
     read_enough = False
@@ -422,7 +467,7 @@ def sweeps_confirm(P: ArrayLike, maps: list[tuple[HeightMap, NDArray[np.float64]
         read = part[np.isfinite(part)]
         if len(part) and len(read) >= min_read * len(part):
             read_enough = True
-        if len(read) >= min_readings and np.mean(read < level) > max_desk:
+        if len(read) >= min_readings and np.mean(np.abs(read) < level) > max_desk:
             return False
     return read_enough
 

@@ -19,8 +19,9 @@ from __future__ import annotations
 
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field, fields, is_dataclass, replace
-from typing import Any, Callable, Literal, Sequence
+from typing import Any, Literal, Sequence
 
 import cv2
 import numpy as np
@@ -662,7 +663,8 @@ class Detector:
         """The row-aligned pair of ``rig``'s ideal images (:class:`Rectification`), made
         once per rig (it does not depend on the world frame)."""
         size = self._view.size
-        key = b"".join(np.asarray(a, np.float64).tobytes() for a in (rig.K1, rig.K2, rig.R, rig.T, size))
+        key = b"".join(np.asarray(a, np.float64).tobytes()
+                       for a in (rig.K1, rig.K2, rig.R, rig.T, size))
         if self._rectification is None or self._rectification[0] != key:
             self._rectification = (key, Rectification.of(rig.K1, rig.K2, rig.R, rig.T, size))
         return self._rectification[1]
