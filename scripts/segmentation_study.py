@@ -8,8 +8,8 @@ are within 3 px; recall is over books whose cover is >= 90 % visible. Prints a M
     python scripts/segmentation_study.py --n 40 --seed 100 [--methods closed+,open]
     python scripts/segmentation_study.py --n 40 --seed 100 --methods closed+ --refine-gamma 2.2
 
-``closed-`` is eq. 2 with e^{-N/N_max} (the text's intent, rovis's default), ``closed+`` as
-printed (e^{+N/N_max}).
+``closed-`` is eq. 2 with e^{-N/N_max} (the text's intent), ``closed+`` as printed
+(e^{+N/N_max}, rovis's default: it finds more books in 3D, docs/segmentation.md).
 """
 
 from __future__ import annotations
