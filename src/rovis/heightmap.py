@@ -366,9 +366,8 @@ def dense_height_map(left: NDArray[np.uint8], right: NDArray[np.uint8], rect: Re
     if w == 0 or h == 0 or rect.baseline <= 0:
         return HeightMap(height, heights, box), Q_rect, dense
     # the desk plane in the rectified left camera: n·X + d = height above it
-    T_rect_world = np.eye(4)
-    T_rect_world[:3, :3] = rect.R_rect_left
-    T_rect_world = T_rect_world @ np.asarray(T_left_world, np.float64)
+    T_rect_world = geometry.make_transform(rect.R_rect_left, np.zeros(3)) @ np.asarray(
+        T_left_world, np.float64)
     plane = np.asarray(desk_plane, np.float64) / np.linalg.norm(desk_plane[:3])
     n = T_rect_world[:3, :3] @ plane[:3]
     d = plane[3] - n @ T_rect_world[:3, 3]
