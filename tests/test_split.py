@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -11,7 +12,8 @@ from rovis import geometry
 from rovis.pipeline import DetectConfig, Detector, Pair
 from rovis.segment import SegmentConfig, gradients
 from rovis.segment.edges import CANNY_LOW_RATIO
-from rovis.split import SplitConfig, join_halves, seam_profile, split_union, split_union_heights
+from rovis.split import (SplitConfig, _step_along, join_halves, seam_profile, split_union,
+                         split_union_heights)
 from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
@@ -22,24 +24,30 @@ YAW = 250.0  # the taller book the farther: its page block's face shows at the s
 LENGTHS = (0.14, 0.16)  # m, along the seam's normal; both 0.13 m wide
 
 
-def _flush(heights: tuple[float, float], lengths: tuple[float, float] = LENGTHS):
-    """Two dark plain books of nearly one shade, flush end to end on a clean desk at
-    500 lx: the books, the union's corners (world), both ideal images' gradients, the
-    projections and the desk plane."""
+def _flush(heights: tuple[float, float], lengths: tuple[float, float] = LENGTHS,
+           widths: tuple[float, float] = (0.13, 0.13), albedos: tuple[float, float] = (0.15, 0.16)):
+    """Two plain books (by default dark, of nearly one shade), flush end to end on a clean
+    desk at 500 lx, on one axis: the books, the union's corners (world: each far end's, as wide
+    as the wider book), both ideal images' gradients, the projections and the desk
+    plane."""
     x = np.array([np.cos(np.radians(YAW)), np.sin(np.radians(YAW)), 0.0])
     c_a = np.array([0.40, 0.33, heights[0]])
     c_b = c_a + 0.5 * (lengths[0] + lengths[1]) * x
     c_b[2] = heights[1]
-    books = (Book(center=tuple(c_a), yaw_deg=YAW, size=(lengths[0], 0.13, heights[0]),
-                  cover=CoverSpec(kind="plain", albedo=0.15, seed=1)),
-             Book(center=tuple(c_b), yaw_deg=YAW, size=(lengths[1], 0.13, heights[1]),
-                  cover=CoverSpec(kind="plain", albedo=0.16, seed=2)))
+    books = (Book(center=tuple(c_a), yaw_deg=YAW, size=(lengths[0], widths[0], heights[0]),
+                  cover=CoverSpec(kind="plain", albedo=albedos[0], seed=1)),
+             Book(center=tuple(c_b), yaw_deg=YAW, size=(lengths[1], widths[1], heights[1]),
+                  cover=CoverSpec(kind="plain", albedo=albedos[1], seed=2)))
     sc = sample_scene(3, lux=500.0, n_books=0)
     sc = replace(sc, books=books, papers=(), mugs=(), pens=(), cables=())
     r = render(sc, 3)
     grads = {cam: gradients(img) for cam, img in ideal_images(sc.rig, r).items()}
     a, b = books
-    union = np.array([b.corners[0], b.corners[1], a.corners[2], a.corners[3]])
+    # B's far end (corners 0, 1) and A's (3, 2), each as wide as the wider book
+    u = (b.corners[1] - b.corners[0]) / widths[1]
+    half = 0.5 * max(widths) * u
+    m_b, m_a = b.corners[:2].mean(axis=0), a.corners[2:].mean(axis=0)
+    union = np.array([m_b - half, m_b + half, m_a + half, m_a - half])
     return books, union, grads, {"left": sc.rig.Q_L, "right": sc.rig.Q_R}, \
         np.asarray(r.truth["desk_plane"]), (sc, r)
 
@@ -79,8 +87,9 @@ def test_the_split_measures_each_part_at_its_books_height(two_heights):
     books, union, grads, Q, desk, _ = two_heights
     strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
     corners = {cam: geometry.project(Q[cam], union) for cam in Q}
-    parts, heights, seams = split_union_heights(corners, Q, grads,
-                                                {cam: strength for cam in Q}, desk)
+    parts, heights, seams, by_step = split_union_heights(corners, Q, grads,
+                                                         {cam: strength for cam in Q}, desk)
+    assert by_step
     other = {0: 1, 1: 0}
     for k, (part, h, seam) in enumerate(zip(parts, heights, seams)):
         mid = part["left"].mean(axis=0)
@@ -98,7 +107,7 @@ def test_the_split_measures_each_part_at_its_books_height(two_heights):
     moved = {cam: Q[cam] @ np.vstack([np.hstack([np.eye(3), -shift[:, None]]), [0, 0, 0, 1]])
              for cam in Q}
     plane = np.r_[desk[:3], desk[3] - desk[:3] @ shift]
-    _, again, _ = split_union_heights(corners, moved, grads, {cam: strength for cam in Q}, plane)
+    again = split_union_heights(corners, moved, grads, {cam: strength for cam in Q}, plane).heights
     np.testing.assert_allclose(again, heights, atol=1e-6)
 
 
@@ -106,8 +115,6 @@ def test_parts_off_in_one_image_are_laid_at_the_heights_that_split_them(two_heig
     # the union's quad in the right image at the taller book's height all along (as a
     # candidate completed in 3D as one rectangle gives it): fitted on its own, the lower
     # part stands higher than its neighbour (the step turned round)
-    from types import SimpleNamespace
-
     books, union, grads, Q, desk, (sc, _) = two_heights
     top = union.copy()
     top[:, 2] = max(b.size[2] for b in books)
@@ -146,11 +153,69 @@ def test_a_union_shorter_than_two_books_is_not_split(two_heights):
     assert _split(union, grads, Q, desk, SplitConfig(min_part=0.16)) is None
 
 
-def test_two_books_of_one_height_stay_one():
+def test_two_books_of_one_height_and_width_stay_one():
     # the seam shows (the page block's face is gone, but the covers differ a little), yet
-    # no step in height: a band printed across one cover looks the same
+    # no step in height and the sides run on straight: a band printed across one cover
+    # looks the same
     _, union, grads, Q, desk, _ = _flush((0.03, 0.03))
     assert _split(union, grads, Q, desk) is None
+
+
+@pytest.fixture(scope="module")
+def two_widths():
+    # a dark book and a mid-grey one: their seam shows
+    return _flush((0.03, 0.03), widths=(0.13, 0.12), albedos=(0.15, 0.35))
+
+
+def test_two_books_of_one_height_and_two_widths_are_split_at_the_jog(two_widths):
+    books, union, grads, Q, desk, _ = two_widths
+    strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
+    corners = {cam: geometry.project(Q[cam], union) for cam in Q}
+    split = split_union_heights(corners, Q, grads, {cam: strength for cam in Q}, desk)
+    assert split is not None and not split.by_step  # no step: the jog split it
+    x = np.array([np.cos(np.radians(YAW)), np.sin(np.radians(YAW))])  # along the union
+    for part in split.parts:
+        P = geometry.triangulate(Q["left"], Q["right"], part["left"], part["right"])
+        book = min(books, key=lambda b: np.linalg.norm(P.mean(axis=0) - np.asarray(b.center)))
+        # the seam where the books meet: each part's length and place along the union
+        # to grasping accuracy (across it, the narrower part still spans the union's width)
+        along = (P[:, :2] - np.asarray(book.center)[:2]) @ x
+        assert abs(np.ptp(along) - book.size[0]) < 0.006  # m
+        assert abs(along.mean()) < 0.004
+    no_jog = split_union_heights(corners, Q, grads, {cam: strength for cam in Q}, desk,
+                                 SplitConfig(jog=False))
+    assert no_jog is None
+
+
+def test_the_pipeline_splits_two_books_of_two_widths_at_the_jog(two_widths):
+    books, union, grads, Q, desk, (sc, _) = two_widths
+    pair = Pair(geometry.project(Q["left"], union), geometry.project(Q["right"], union),
+                1.0, 0.0)
+    segs = {cam: SimpleNamespace(T_H=None) for cam in Q}  # the open loop's edge strength
+    det = Detector(sc.rig)
+    _, union_book, _ = det._reconstruct_or_why(sc.rig, pair, desk, None)
+    assert union_book is not None
+    found = [book for _, book in det._split_unions(sc.rig, segs, grads, [(pair, union_book)],
+                                                   desk)]
+    assert len(found) == 2
+    for book in books:  # each part refitted to its own sides: the narrower one's too
+        got = min(found, key=lambda b: np.linalg.norm(b.pose.center - book.center))
+        assert np.linalg.norm(got.pose.center[:2] - np.asarray(book.center)[:2]) < 0.004  # m
+        np.testing.assert_allclose(sorted(got.pose.size[:2]), sorted(book.size[:2]), atol=0.006)
+
+
+@pytest.mark.parametrize("jog, expected", [(0.0, 0.0), (3.0, 3.0), (-4.5, -4.5)])
+def test_a_side_breaking_onto_another_line_is_found_where_it_breaks(jog, expected):
+    t = np.arange(0.0, 200.0)
+    e = 0.01 * t + np.where(t >= 120, jog, 0.0)  # a side at a small angle to both edges
+    e[::7] += 0.4  # sampling noise
+    at, got = _step_along(t, e)
+    assert abs(got - expected) < 0.3  # px
+    if jog:
+        assert abs(at - 119.5) <= 1.0
+    e[::5] = 5.0  # a fifth of the samples on something else: no two edges
+    assert _step_along(t, e) is None
+    assert _step_along(t[:15], e[:15]) is None  # too short for two runs
 
 
 def test_one_book_is_not_split():
@@ -263,7 +328,9 @@ def test_the_pipeline_joins_a_cover_cut_at_its_band_switched_on_only():
 
 
 @pytest.mark.parametrize("bad", [{"lay_reach": -0.01}, {"join_touch": -1.0},
-                                 {"join_step": -0.001}, {"join_angle_deg": 90.0}])
+                                 {"join_step": -0.001}, {"join_angle_deg": 90.0},
+                                 {"min_jog_px": 0.0}, {"jog_agree_px": -1.0},
+                                 {"jog_reach_px": 0.0}])
 def test_bad_split_settings_are_refused_by_name(bad):
     with pytest.raises(ValueError, match=next(iter(bad))):
         SplitConfig(**bad)

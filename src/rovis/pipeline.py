@@ -1508,8 +1508,18 @@ class Detector:
         for pair, book in found:
             split = split_union_heights({"left": pair.left, "right": pair.right}, Q, grads,
                                         strength, desk_plane, self.cfg.split)
-            if split is not None:
-                parts, heights, seams = split
+            if split is not None and not split.by_step:
+                # split by the jog (two books of one height): both parts must be books,
+                # each fitted to its own sides, which may lie as far off the union's as
+                # the jog was looked for
+                made = [self._fitted_part(rig, grads, pair, part, desk_plane, texture,
+                                          half_width=self.cfg.split.jog_reach_px)
+                        for part in split.parts]
+                if all(book is not None for _, book in made):
+                    out += made  # type: ignore[arg-type]
+                    continue
+            elif split is not None:
+                parts, heights, seams, _ = split
                 made = [self._fitted_part(rig, grads, pair, part, desk_plane, texture)
                         for part in parts]
                 # both parts are books, but not of the step that split them: laid there
@@ -1539,13 +1549,15 @@ class Detector:
 
     def _fitted_part(self, rig: StereoRig, grads: dict[str, Gradients], pair: Pair,
                      part: dict[str, NDArray[np.float64]], desk_plane: NDArray[np.float64],
-                     texture: dict[str, NDArray[np.float32]] | None,
-                     ) -> tuple[Pair, BookDetection | None]:
+                     texture: dict[str, NDArray[np.float32]] | None, *,
+                     half_width: float = 3.0) -> tuple[Pair, BookDetection | None]:
         """One part of a split as a book: its sides fitted to its own edges in each image
         (the union's corners may come from a rectangle placed at one height, a candidate
-        completed in 3D, off in one image for the lower part), else as cut."""
+        completed in 3D, off in one image for the lower part), within ``half_width`` px of
+        the part's (:func:`rovis.segment.boundary.refine_quad`), else as cut."""
         fitted = None
-        for quads in ({cam: refine_quad(grads[cam], q) for cam, q in part.items()}, part):
+        for quads in ({cam: refine_quad(grads[cam], q, half_width=half_width)
+                       for cam, q in part.items()}, part):
             trial = _in_eq1_order(replace(pair, left=quads["left"], right=quads["right"]))
             trial, fitted, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
             if fitted is not None:

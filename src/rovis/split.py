@@ -18,9 +18,19 @@ Two cues tell the union from one book with a printed band across it, both from s
 A side facing the camera is not measured (the page block below it shows edges of every
 height between the desk and the cover), nor one along the epipolar lines (stereo cannot
 place it). Where both sides are measured they must agree: a side may run along a taller
-neighbour and take that one's edge. Two touching books of one height are not told apart
-(their seam alone is a printed band's), nor are two whose seam shows no step: the nearer
-book the taller and both covers of one brightness, it hides the seam behind its top edge.
+neighbour and take that one's edge.
+
+Two touching books of one height leave no step; their seam alone is a printed band's. A
+third cue tells them apart where their widths differ or they lie offset across the seam:
+
+- *the jog*: a side the seam cuts is one straight edge on one book, but two on two books
+  of different widths, the second stopping a few millimetres short of the first's line
+  (:func:`_jog`): each half fitted in each image on its own, the second's line stands
+  off the first's at the seam, by as much and the same way in both images.
+
+Two books of one height and one width laid flush and aligned are not told apart, nor are
+two whose seam shows no step: the nearer book the taller and both covers of one
+brightness, it hides the seam behind its top edge.
 
 The reverse, :func:`join_halves`: one cover found as two books either side of a printed
 band, the two at one height, sharing a whole side and making one rectangle, is joined.
@@ -30,6 +40,7 @@ Two touching books of one height and one size, laid flush and aligned, are joine
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -60,6 +71,13 @@ class SplitConfig:
     round) are laid at the heights that split them, their sides but the seam moved onto the
     edges both images show within ``lay_reach`` (the detector's split step).
 
+    With ``jog``, where no seam's sides step in height, a side across the seams that does
+    not face the camera and jogs splits the cover at the seam line nearest the jog, within
+    ``agree`` (:func:`_jog_at`): the side's edge, read within ``jog_reach_px`` of it,
+    breaks from one straight line onto another, ``min_jog_px`` or more off, the same way
+    in both images and within ``jog_agree_px`` of each other, each part ``min_part`` long
+    or more.
+
     The reverse (:func:`join_halves`, with ``join``): two books whose mean heights lie
     within ``join_step`` of each other, sharing a whole side (both its ends within
     ``join_touch``) and lying either side of it, whose outer corners make a rectangle
@@ -84,15 +102,22 @@ class SplitConfig:
     join_touch: float = 0.004
     join_step: float = 0.003
     join_angle_deg: float = 8.0
+    jog: bool = True
+    min_jog_px: float = 2.5
+    jog_agree_px: float = 1.0
+    jog_reach_px: float = 6.0
 
     def __post_init__(self) -> None:
         problems = [name for name, ok in (
             ("lay_reach", self.lay_reach >= 0),
             ("join_touch", self.join_touch >= 0), ("join_step", self.join_step >= 0),
-            ("join_angle_deg", 0 <= self.join_angle_deg < 90)) if not ok]
+            ("join_angle_deg", 0 <= self.join_angle_deg < 90),
+            ("min_jog_px", self.min_jog_px > 0 and self.jog_agree_px >= 0
+             and self.jog_reach_px > 0)) if not ok]
         if problems:
-            raise ValueError(f"split: bad {', '.join(problems)} (lay_reach, join_touch and "
-                             "join_step at least 0; join_angle_deg in [0, 90))")
+            raise ValueError(f"split: bad {', '.join(problems)} (lay_reach, join_touch, "
+                             "join_step and jog_agree_px at least 0; join_angle_deg in "
+                             "[0, 90); min_jog_px and jog_reach_px positive)")
 
 
 def seam_profile(grad: Gradients, corners: NDArray[np.float64], k: int, t: NDArray[np.float64],
@@ -140,6 +165,29 @@ def seam_profile(grad: Gradients, corners: NDArray[np.float64], k: int, t: NDArr
 Parts = tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]]
 
 
+class Split(NamedTuple):
+    """A cover split into two books (:func:`split_union_heights`).
+
+    Attributes
+    ----------
+    parts : Parts
+        Each part's corners (4, 2) per camera, in the cover's corner order.
+    heights : (float, float)
+        Per part, metres above the desk: the height its edges along the two cut sides
+        stand at (the mean over the sides measured); for a split by the jog, the cover's
+        own (the mean of its triangulated corners) for both.
+    seams : (int, int)
+        Per part, the index of its side on the seam (side s runs from corner s to s + 1).
+    by_step : bool
+        Split by the step in height (else by the jog, :func:`_jog`).
+    """
+
+    parts: Parts
+    heights: tuple[float, float]
+    seams: tuple[int, int]
+    by_step: bool
+
+
 def split_union(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],
                 grads: dict[str, Gradients], strength: dict[str, float],
                 desk_plane: NDArray[np.float64], cfg: SplitConfig = SplitConfig(), *,
@@ -174,29 +222,24 @@ def split_union(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np
         Each part's corners (4, 2) per camera, in the cover's corner order.
     """
     found = split_union_heights(corners, Q, grads, strength, desk_plane, cfg, down=down)
-    return None if found is None else found[0]
+    return None if found is None else found.parts
 
 
 def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],
                         grads: dict[str, Gradients], strength: dict[str, float],
                         desk_plane: NDArray[np.float64], cfg: SplitConfig = SplitConfig(), *,
-                        down: tuple[float, float] = (0.0, 1.0),
-                        ) -> tuple[Parts, tuple[float, float], tuple[int, int]] | None:
-    """:func:`split_union`, with what placed the parts.
+                        down: tuple[float, float] = (0.0, 1.0)) -> Split | None:
+    """:func:`split_union`, with what placed the parts (:class:`Split`). Where no seam's
+    sides step in height, the strongest seam where a side jogs (``cfg.jog``, :func:`_jog`)
+    splits the cover.
 
     Parameters are :func:`split_union`'s.
-
-    Returns
-    -------
-    (parts, heights, seam_sides) or None
-        The parts (:func:`split_union`'s); per part, the height above the desk (metres)
-        its edges along the two cut sides stand at (the mean over the sides measured); and
-        per part, the index of its side on the seam (side s runs from corner s to s + 1).
     """
     P = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
     if not np.all(np.isfinite(P)):
         return None
     seams = []  # (score, k, per camera (t, offset)): every candidate seam, both axes
+    profiles = {}  # per axis k: t and each camera's seam_profile
     for k in (0, 1):
         # across the seam: from side k to side k + 2, along sides k + 1 and k + 3
         span = 0.5 * (np.linalg.norm(P[(k + 2) % 4] - P[(k + 1) % 4])
@@ -206,6 +249,7 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
         t = np.arange(cfg.min_part, span - cfg.min_part + 1e-9, cfg.step) / span
         found = {cam: seam_profile(grads[cam], corners[cam], k, t, strength[cam],
                                    reach_px=cfg.reach_px) for cam in corners}
+        profiles[k] = (t, found)
         prof = {cam: share for cam, (share, _) in found.items()}
         # the images' seams may lie a few millimetres apart along the cover (the
         # interpolation is in each image, the perspective differs a little): the best of
@@ -227,20 +271,48 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
             seams.append((float(score[i]), k, {"left": (t[i], found["left"][1][i]),
                                                "right": (t[j], found["right"][1][j])}))
     for _, k, t_seam in sorted(seams, key=lambda item: -item[0]):  # the strongest first
-        parts: Parts = ({}, {})
-        for cam, c in corners.items():
-            seam = _seam_corners(grads[cam], c, k, *t_seam[cam])
-            if seam is None:
-                break
-            near, far = c.copy(), c.copy()  # the part at side k, the part at side k + 2
-            near[(k + 3) % 4], near[(k + 2) % 4] = seam
-            far[k], far[(k + 1) % 4] = seam
-            parts[0][cam], parts[1][cam] = near, far
-        else:
+        parts = _parts(corners, grads, k, t_seam)
+        if parts is not None:
             heights = _step_in_height(corners, parts, k, Q, grads, desk_plane, cfg, down=down)
             if heights is not None:
-                return parts, heights, ((k + 2) % 4, k)
+                return Split(parts, heights, ((k + 2) % 4, k), True)
+    for k, (t, found) in profiles.items() if cfg.jog else ():
+        # no step in height: a side that jogs places the seam (a seam line there, in both
+        # images, within ``agree`` of where the side jogs)
+        where = _jog_at(corners, k, grads, cfg, down=down)
+        # each part at least ``min_part`` long: a neighbour's edge near a corner is no jog
+        if where is None or not all(t[0] <= v <= t[-1] for v in where.values()):
+            continue
+        w = max(int(round(cfg.agree / cfg.step)), 0)
+        t_seam = {}
+        for cam, (share, offset) in found.items():
+            i = int(np.argmin(np.abs(t - where[cam])))
+            window = np.arange(max(i - w, 0), min(i + w + 1, len(t)))
+            j = int(window[np.argmax(share[window])])
+            if share[j] >= cfg.min_share:
+                t_seam[cam] = (t[j], offset[j])
+        parts = _parts(corners, grads, k, t_seam) if len(t_seam) == len(corners) else None
+        if parts is not None:
+            h = float(np.mean(geometry.plane_distance(desk_plane, P)))
+            return Split(parts, (h, h), ((k + 2) % 4, k), False)
     return None
+
+
+def _parts(corners: dict[str, NDArray[np.float64]], grads: dict[str, Gradients], k: int,
+           t_seam: dict[str, tuple[float, float]]) -> Parts | None:
+    """The two parts of a cover cut at the seam of axis ``k`` at ``t_seam`` (per camera
+    :func:`seam_profile`'s ``t`` and offset; :func:`_seam_corners`), or None where a
+    seam does not cut the sides."""
+    parts: Parts = ({}, {})
+    for cam, c in corners.items():
+        seam = _seam_corners(grads[cam], c, k, *t_seam[cam])
+        if seam is None:
+            return None
+        near, far = c.copy(), c.copy()  # the part at side k, the part at side k + 2
+        near[(k + 3) % 4], near[(k + 2) % 4] = seam
+        far[k], far[(k + 1) % 4] = seam
+        parts[0][cam], parts[1][cam] = near, far
+    return parts
 
 
 def join_halves(A: NDArray[np.float64], B: NDArray[np.float64], desk_plane: NDArray[np.float64],
@@ -366,6 +438,107 @@ def _step_in_height(corners: dict[str, NDArray[np.float64]], parts: Parts, k: in
         return None
     near, far = h.mean(axis=0)
     return float(near), float(far)
+
+
+def _jog_at(corners: dict[str, NDArray[np.float64]], k: int, grads: dict[str, Gradients],
+            cfg: SplitConfig, *, down: tuple[float, float]) -> dict[str, float] | None:
+    """Where a side across the seams of axis ``k`` (``k + 1`` or ``k + 3``), not facing the
+    camera, jogs in both images: per camera the point as :func:`seam_profile`'s ``t``
+    (the fraction of the way from side ``k`` to side ``k + 2``), or None where neither
+    side does.
+
+    One book's side is one straight edge, whatever is printed across the cover; two
+    touching books of different widths, or laid offset across the seam, show one edge
+    each, parallel and a few pixels apart. Along the side, the edge's offset across it is
+    read every pixel (:func:`_edge_offsets`, within ``cfg.jog_reach_px``); where those
+    offsets break from one straight line onto another (:func:`_step_along`), it jogs. It
+    counts where the second line lies ``cfg.min_jog_px`` or more off the first there, the
+    same way in both images and within ``cfg.jog_agree_px`` of each other, at points
+    within 3 % of the way of each other. A side facing the camera is not asked: its page
+    block shows several edges below it. The larger jog of the two sides wins.
+    """
+    best: tuple[float, dict[str, float]] | None = None
+    for s in ((k + 1) % 4, (k + 3) % 4):
+        if _faces_camera(corners, s, down):
+            continue
+        jogs, where = [], {}
+        for cam, c in corners.items():
+            a, b = c[s], c[(s + 1) % 4]
+            length = float(np.linalg.norm(b - a))
+            inward = np.array([a[1] - b[1], b[0] - a[0]]) / max(length, 1e-9)
+            if inward @ (c.mean(axis=0) - a) < 0:
+                inward = -inward
+            step = _step_along(*_edge_offsets(grads[cam], a, b, inward, cfg.jog_reach_px))
+            if step is None:
+                break
+            # side k + 1 runs from side k to side k + 2, side k + 3 the other way
+            where[cam] = step[0] / length if s == (k + 1) % 4 else 1.0 - step[0] / length
+            jogs.append(step[1])
+        if len(jogs) == len(corners) and min(abs(j) for j in jogs) >= cfg.min_jog_px \
+                and len({np.sign(j) for j in jogs}) == 1 and np.ptp(jogs) <= cfg.jog_agree_px \
+                and np.ptp(list(where.values())) <= 0.03 \
+                and (best is None or min(abs(j) for j in jogs) > best[0]):
+            best = (min(abs(j) for j in jogs), where)
+    return None if best is None else best[1]
+
+
+def _edge_offsets(grad: Gradients, a: NDArray[np.float64], b: NDArray[np.float64],
+                  inward: NDArray[np.float64], reach_px: float,
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Along side ``a``-``b`` every pixel (its ends' 5 % left out), the offset (px along
+    ``inward``, within ``reach_px``) of the strongest derivative across it: the positions
+    along the side (px from ``a``) and the offsets, NaN where the derivative is under half
+    the side's median peak (no edge there)."""
+    length = float(np.linalg.norm(b - a))
+    t = np.arange(0.05 * length, 0.95 * length, 1.0)
+    offsets = np.arange(-reach_px, reach_px + 0.5, 1.0)
+    d = (b - a) / max(length, 1e-9)
+    pts = a + t[:, None] * d
+    gx, gy = grad.sample(pts[:, None, 0] + offsets[None, :] * inward[0],
+                         pts[:, None, 1] + offsets[None, :] * inward[1])
+    g = np.abs(gx * inward[0] + gy * inward[1])  # (T, O)
+    k = np.argmax(g, axis=1)
+    peak = g[np.arange(len(t)), k]
+    e = np.where(peak >= 0.5 * np.median(peak), offsets[k], np.nan) if len(t) else offsets[k]
+    return t, e
+
+
+def _step_along(t: NDArray[np.float64], e: NDArray[np.float64], min_run: int = 10,
+                max_rms: float = 1.0) -> tuple[float, float] | None:
+    """Where offsets ``e`` along ``t`` (NaN: none) break from one straight line onto
+    another: the break that leaves the least squared residual about a line fitted to each
+    run (each ``min_run`` samples or more), and the second line's offset there less the
+    first's; None where too few samples, or a run strays from its line by more than
+    ``max_rms`` (RMS): no two edges there.
+
+    Lines, not levels: a quad's side fitted over two books' edges runs at a small angle to
+    each (prefix sums give every break's fits at once).
+    """
+    ok = np.isfinite(e)
+    t, e = t[ok], e[ok]
+    n = len(e)
+    if n < 2 * min_run:
+        return None
+
+    def fits(t: NDArray[np.float64], e: NDArray[np.float64]):  # type: ignore[no-untyped-def]
+        # for every prefix: the least-squares line (alpha + beta t) and its squared residual
+        c = [np.cumsum(v) for v in (np.ones_like(t), t, e, t * t, t * e, e * e)]
+        k, st, se, stt, ste, see = c
+        det = k * stt - st * st
+        with np.errstate(divide="ignore", invalid="ignore"):
+            beta = np.where(det > 0, (k * ste - st * se) / det, 0.0)
+        alpha = (se - beta * st) / k
+        return alpha, beta, np.maximum(see - alpha * se - beta * ste, 0.0)
+
+    a0, b0, r0 = fits(t, e)  # prefixes: samples [0, i]
+    a1, b1, r1 = (v[::-1] for v in fits(t[::-1], e[::-1]))  # suffixes: samples [i, n)
+    i = np.arange(min_run, n - min_run + 1)  # the first run is [0, i), the second [i, n)
+    cost = r0[i - 1] + r1[i]
+    j = int(i[np.argmin(cost)])
+    if max(r0[j - 1] / j, r1[j] / (n - j)) > max_rms ** 2:
+        return None
+    at = 0.5 * (t[j - 1] + t[j])
+    return float(at), float((a1[j] + b1[j] * at) - (a0[j - 1] + b0[j - 1] * at))
 
 
 def _faces_camera(corners: dict[str, NDArray[np.float64]], s: int,

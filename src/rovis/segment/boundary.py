@@ -382,16 +382,18 @@ def two_sided_candidates(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
 
 
 def refine_quad(grad: Gradients, corners: NDArray[np.float64], *,
-                down: tuple[float, float] = (0.0, 1.0)) -> NDArray[np.float64]:
+                down: tuple[float, float] = (0.0, 1.0),
+                half_width: float = 3.0) -> NDArray[np.float64]:
     """Sub-pixel corners (4, 2): each side refit to the gradient, neighbours intersected.
 
     A book seen from above and in front shows its page block below the cover's near sides,
     so a Hough line there may sit on the block's outer edge. On sides facing the camera
     (outward normal along ``down``, the image direction of the world's vertical) the cover
     edge is looked for inside the first one (:func:`cover_edge_offset`). A side that cannot
-    be refit keeps its Hough position.
+    be refit keeps its Hough position. ``half_width``: how far from each side (px) its
+    edge is looked for (:func:`rovis.segment.lines.refine_segment`).
     """
-    return _refit(grad, corners, down, both=False)[0]
+    return _refit(grad, corners, down, both=False, half_width=half_width)[0]
 
 
 def refine_quad_both(grad: Gradients, corners: NDArray[np.float64], *,
@@ -416,7 +418,7 @@ def refine_sides(grad: Gradients, corners: NDArray[np.float64], *,
 
 
 def _fit_side(grad: Gradients, corners: NDArray[np.float64], s: int, down: tuple[float, float],
-              *, both: bool) -> tuple[Fit | None, Fit | None, Fit, float]:
+              *, both: bool, half_width: float = 3.0) -> tuple[Fit | None, Fit | None, Fit, float]:
     """Side ``s`` refit with the inward search for the cover edge and (``both``, where the
     search moved it) without it, each None where it fails; the segment the first was fit
     from (its midpoint and direction: its fallback); the search's shift (px)."""
@@ -430,17 +432,19 @@ def _fit_side(grad: Gradients, corners: NDArray[np.float64], s: int, down: tuple
         across = float(np.max((corners - a) @ n_in))  # the quad's extent across this side
         shift = cover_edge_offset(grad, a, b, n_in, max_px=min(25.0, 0.2 * across))
     p, q = a + shift * n_in, b + shift * n_in
-    inward = refine_segment(grad, p, q)
-    plain = refine_segment(grad, a, b) if both and shift != 0.0 else None
+    inward = refine_segment(grad, p, q, half_width=half_width)
+    plain = refine_segment(grad, a, b, half_width=half_width) if both and shift != 0.0 else None
     return inward, plain, (0.5 * (p + q), d), shift
 
 
 def _refit(grad: Gradients, corners: NDArray[np.float64], down: tuple[float, float], *,
-           both: bool) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+           both: bool, half_width: float = 3.0,
+           ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
     """:func:`refine_quad`'s corners, and (``both``) those without the inward search."""
     inward, plain = [], []
     for s in range(4):
-        fit_in, fit_plain, fallback, shift = _fit_side(grad, corners, s, down, both=both)
+        fit_in, fit_plain, fallback, shift = _fit_side(grad, corners, s, down, both=both,
+                                                       half_width=half_width)
         # a side that cannot be refit keeps the segment it was fit from
         inward.append(fit_in if fit_in is not None else fallback)
         if both:
