@@ -279,6 +279,8 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
     for k, (t, found) in profiles.items() if cfg.jog else ():
         # no step in height: a side that jogs places the seam (a seam line there, in both
         # images, within ``agree`` of where the side jogs)
+        if not all(np.any(share >= cfg.min_share) for share, _ in found.values()):
+            continue  # no seam line in an image: nothing to cut at
         where = _jog_at(corners, k, grads, cfg, down=down)
         # each part at least ``min_part`` long: a neighbour's edge near a corner is no jog
         if where is None or not all(t[0] <= v <= t[-1] for v in where.values()):
