@@ -25,14 +25,16 @@ LENGTHS = (0.14, 0.16)  # m, along the seam's normal; both 0.13 m wide
 
 
 def _flush(heights: tuple[float, float], lengths: tuple[float, float] = LENGTHS,
-           widths: tuple[float, float] = (0.13, 0.13), albedos: tuple[float, float] = (0.15, 0.16)):
+           widths: tuple[float, float] = (0.13, 0.13),
+           albedos: tuple[float, float] = (0.15, 0.16), shift: float = 0.0):
     """Two plain books (by default dark, of nearly one shade), flush end to end on a clean
-    desk at 500 lx, on one axis: the books, the union's corners (world: each far end's, as wide
-    as the wider book), both ideal images' gradients, the projections and the desk
-    plane."""
+    desk at 500 lx, on one axis (the second ``shift`` metres across it): the books, the
+    union's corners (world: each far end's, as wide as the wider book, about the first
+    book's axis), both ideal images' gradients, the projections and the desk plane."""
     x = np.array([np.cos(np.radians(YAW)), np.sin(np.radians(YAW)), 0.0])
+    y = np.array([-x[1], x[0], 0.0])
     c_a = np.array([0.40, 0.33, heights[0]])
-    c_b = c_a + 0.5 * (lengths[0] + lengths[1]) * x
+    c_b = c_a + 0.5 * (lengths[0] + lengths[1]) * x + shift * y
     c_b[2] = heights[1]
     books = (Book(center=tuple(c_a), yaw_deg=YAW, size=(lengths[0], widths[0], heights[0]),
                   cover=CoverSpec(kind="plain", albedo=albedos[0], seed=1)),
@@ -46,7 +48,8 @@ def _flush(heights: tuple[float, float], lengths: tuple[float, float] = LENGTHS,
     # B's far end (corners 0, 1) and A's (3, 2), each as wide as the wider book
     u = (b.corners[1] - b.corners[0]) / widths[1]
     half = 0.5 * max(widths) * u
-    m_b, m_a = b.corners[:2].mean(axis=0), a.corners[2:].mean(axis=0)
+    m_b = b.corners[:2].mean(axis=0) - shift * y
+    m_a = a.corners[2:].mean(axis=0)
     union = np.array([m_b - half, m_b + half, m_a + half, m_a - half])
     return books, union, grads, {"left": sc.rig.Q_L, "right": sc.rig.Q_R}, \
         np.asarray(r.truth["desk_plane"]), (sc, r)
@@ -174,14 +177,17 @@ def test_two_books_of_one_height_and_two_widths_are_split_at_the_jog(two_widths)
     split = split_union_heights(corners, Q, grads, {cam: strength for cam in Q}, desk)
     assert split is not None and not split.by_step  # no step: the jog split it
     x = np.array([np.cos(np.radians(YAW)), np.sin(np.radians(YAW))])  # along the union
+    matched = []
     for part in split.parts:
         P = geometry.triangulate(Q["left"], Q["right"], part["left"], part["right"])
         book = min(books, key=lambda b: np.linalg.norm(P.mean(axis=0) - np.asarray(b.center)))
+        matched.append(book)
         # the seam where the books meet: each part's length and place along the union
         # to grasping accuracy (across it, the narrower part still spans the union's width)
         along = (P[:, :2] - np.asarray(book.center)[:2]) @ x
         assert abs(np.ptp(along) - book.size[0]) < 0.006  # m
         assert abs(along.mean()) < 0.004
+    assert matched[0] is not matched[1]  # one part per book
     no_jog = split_union_heights(corners, Q, grads, {cam: strength for cam in Q}, desk,
                                  SplitConfig(jog=False))
     assert no_jog is None
@@ -198,10 +204,34 @@ def test_the_pipeline_splits_two_books_of_two_widths_at_the_jog(two_widths):
     found = [book for _, book in det._split_unions(sc.rig, segs, grads, [(pair, union_book)],
                                                    desk)]
     assert len(found) == 2
+    got_all = []
     for book in books:  # each part refitted to its own sides: the narrower one's too
         got = min(found, key=lambda b: np.linalg.norm(b.pose.center - book.center))
+        got_all.append(got)
         assert np.linalg.norm(got.pose.center[:2] - np.asarray(book.center)[:2]) < 0.004  # m
         np.testing.assert_allclose(sorted(got.pose.size[:2]), sorted(book.size[:2]), atol=0.006)
+    assert got_all[0] is not got_all[1]
+
+
+def test_a_jog_on_one_side_splits_where_that_side_does_not_face_the_camera():
+    # a 13 and a 12.5 cm wide book flush along one side: the other side jogs by 5 mm. Of
+    # the two layouts, one puts the jog on the side facing the camera (its page block
+    # shows several edges: not asked), the other on the side away from it
+    strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
+    x = np.array([np.cos(np.radians(YAW)), np.sin(np.radians(YAW))])  # along the union
+    splits = []
+    for shift in (0.0025, -0.0025):
+        books, union, grads, Q, desk, _ = _flush((0.03, 0.03), widths=(0.13, 0.125),
+                                                 albedos=(0.15, 0.35), shift=shift)
+        corners = {cam: geometry.project(Q[cam], union) for cam in Q}
+        split = split_union_heights(corners, Q, grads, {cam: strength for cam in Q}, desk)
+        splits.append(split)
+        if split is not None:  # each part's middle along the union at its book's
+            got = sorted(geometry.triangulate(Q["left"], Q["right"], p["left"], p["right"])
+                         .mean(axis=0)[:2] @ x for p in split.parts)
+            truth = sorted(np.asarray(b.center)[:2] @ x for b in books)
+            np.testing.assert_allclose(got, truth, atol=0.006)  # m
+    assert sum(split is not None for split in splits) == 1
 
 
 @pytest.mark.parametrize("jog, expected", [(0.0, 0.0), (3.0, 3.0), (-4.5, -4.5)])
@@ -332,5 +362,5 @@ def test_the_pipeline_joins_a_cover_cut_at_its_band_switched_on_only():
                                  {"min_jog_px": 0.0}, {"jog_agree_px": -1.0},
                                  {"jog_reach_px": 0.0}])
 def test_bad_split_settings_are_refused_by_name(bad):
-    with pytest.raises(ValueError, match=next(iter(bad))):
+    with pytest.raises(ValueError, match=f"bad {next(iter(bad))}"):
         SplitConfig(**bad)

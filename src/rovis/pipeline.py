@@ -1493,8 +1493,10 @@ class Detector:
                       ) -> list[tuple[Pair, BookDetection]]:
         """Each book that is two touching books' outline replaced by the two
         (:func:`rovis.split.split_union_heights`), where both parts pass the pose checks and
-        their heights differ by ``split.min_step`` or more; the parts keep the pair's
-        source, ``quality`` and ``error_px``.
+        their heights differ by ``split.min_step`` or more, or, split by the jog of a side
+        (two books of one height), where both pass the pose checks, each side but the seam
+        fitted within ``split.jog_reach_px``; the parts keep the pair's source, ``quality``
+        and ``error_px``.
 
         Each part's sides are fitted to its own edges in each image first. Where both
         parts then pass the pose checks but lose the step or turn it round (one image's
@@ -1510,16 +1512,19 @@ class Detector:
                                         strength, desk_plane, self.cfg.split)
             if split is not None and not split.by_step:
                 # split by the jog (two books of one height): both parts must be books,
-                # each fitted to its own sides, which may lie as far off the union's as
-                # the jog was looked for
-                made = [self._fitted_part(rig, grads, pair, part, desk_plane, texture,
-                                          half_width=self.cfg.split.jog_reach_px)
-                        for part in split.parts]
+                # each side but the seam fitted to its own edge, which may lie as far off
+                # the union's outline as the jog was looked for (the narrower book's)
+                made = []
+                for part, seam in zip(split.parts, split.seams):
+                    widths = [3.0 if s == seam else self.cfg.split.jog_reach_px
+                              for s in range(4)]
+                    made.append(self._fitted_part(rig, grads, pair, part, desk_plane,
+                                                  texture, half_width=widths))
                 if all(book is not None for _, book in made):
                     out += made  # type: ignore[arg-type]
                     continue
             elif split is not None:
-                parts, heights, seams, _ = split
+                parts, heights, seams = split.parts, split.heights, split.seams
                 made = [self._fitted_part(rig, grads, pair, part, desk_plane, texture)
                         for part in parts]
                 # both parts are books, but not of the step that split them: laid there
@@ -1550,11 +1555,13 @@ class Detector:
     def _fitted_part(self, rig: StereoRig, grads: dict[str, Gradients], pair: Pair,
                      part: dict[str, NDArray[np.float64]], desk_plane: NDArray[np.float64],
                      texture: dict[str, NDArray[np.float32]] | None, *,
-                     half_width: float = 3.0) -> tuple[Pair, BookDetection | None]:
+                     half_width: float | Sequence[float] = 3.0,
+                     ) -> tuple[Pair, BookDetection | None]:
         """One part of a split as a book: its sides fitted to its own edges in each image
         (the union's corners may come from a rectangle placed at one height, a candidate
         completed in 3D, off in one image for the lower part), within ``half_width`` px of
-        the part's (:func:`rovis.segment.boundary.refine_quad`), else as cut."""
+        the part's sides, one for all or per side
+        (:func:`rovis.segment.boundary.refine_quad`), else as cut."""
         fitted = None
         for quads in ({cam: refine_quad(grads[cam], q, half_width=half_width)
                        for cam, q in part.items()}, part):

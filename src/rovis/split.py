@@ -25,8 +25,8 @@ third cue tells them apart where their widths differ or they lie offset across t
 
 - *the jog*: a side the seam cuts is one straight edge on one book, but two on two books
   of different widths, the second stopping a few millimetres short of the first's line
-  (:func:`_jog`): each half fitted in each image on its own, the second's line stands
-  off the first's at the seam, by as much and the same way in both images.
+  (:func:`_jog_at`): read along the side, the edge breaks from one straight line onto
+  another, by as much and the same way in both images, where the books meet.
 
 Two books of one height and one width laid flush and aligned are not told apart, nor are
 two whose seam shows no step: the nearer book the taller and both covers of one
@@ -72,11 +72,11 @@ class SplitConfig:
     edges both images show within ``lay_reach`` (the detector's split step).
 
     With ``jog``, where no seam's sides step in height, a side across the seams that does
-    not face the camera and jogs splits the cover at the seam line nearest the jog, within
-    ``agree`` (:func:`_jog_at`): the side's edge, read within ``jog_reach_px`` of it,
-    breaks from one straight line onto another, ``min_jog_px`` or more off, the same way
-    in both images and within ``jog_agree_px`` of each other, each part ``min_part`` long
-    or more.
+    not face the camera and jogs splits the cover at the strongest seam line within
+    ``agree`` of the jog (:func:`_jog_at`): the side's edge, read within ``jog_reach_px``
+    of it, breaks from one straight line onto another, ``min_jog_px`` or more off, the
+    same way in both images and within ``jog_agree_px`` of each other, within ``agree`` of
+    each other along the cover, each part about ``min_part`` long or more.
 
     The reverse (:func:`join_halves`, with ``join``): two books whose mean heights lie
     within ``join_step`` of each other, sharing a whole side (both its ends within
@@ -112,8 +112,8 @@ class SplitConfig:
             ("lay_reach", self.lay_reach >= 0),
             ("join_touch", self.join_touch >= 0), ("join_step", self.join_step >= 0),
             ("join_angle_deg", 0 <= self.join_angle_deg < 90),
-            ("min_jog_px", self.min_jog_px > 0 and self.jog_agree_px >= 0
-             and self.jog_reach_px > 0)) if not ok]
+            ("min_jog_px", self.min_jog_px > 0), ("jog_agree_px", self.jog_agree_px >= 0),
+            ("jog_reach_px", self.jog_reach_px > 0)) if not ok]
         if problems:
             raise ValueError(f"split: bad {', '.join(problems)} (lay_reach, join_touch, "
                              "join_step and jog_agree_px at least 0; join_angle_deg in "
@@ -179,7 +179,7 @@ class Split(NamedTuple):
     seams : (int, int)
         Per part, the index of its side on the seam (side s runs from corner s to s + 1).
     by_step : bool
-        Split by the step in height (else by the jog, :func:`_jog`).
+        Split by the step in height (else by the jog, :func:`_jog_at`).
     """
 
     parts: Parts
@@ -200,7 +200,8 @@ def split_union(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np
     on either side; each image's seam line is fitted to its edge (:func:`refine_segment`)
     and cut by the other two sides for the parts' corners. The strongest seam where those
     sides step in height by ``cfg.min_step`` or more (see the module's notes) gives the
-    parts.
+    parts; failing that (with ``cfg.jog``), the seam where a side that does not face the
+    camera jogs (:func:`_jog_at`).
 
     Parameters
     ----------
@@ -230,7 +231,7 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
                         desk_plane: NDArray[np.float64], cfg: SplitConfig = SplitConfig(), *,
                         down: tuple[float, float] = (0.0, 1.0)) -> Split | None:
     """:func:`split_union`, with what placed the parts (:class:`Split`). Where no seam's
-    sides step in height, the strongest seam where a side jogs (``cfg.jog``, :func:`_jog`)
+    sides step in height, the seam where a side jogs most (``cfg.jog``, :func:`_jog_at`)
     splits the cover.
 
     Parameters are :func:`split_union`'s.
@@ -239,7 +240,7 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
     if not np.all(np.isfinite(P)):
         return None
     seams = []  # (score, k, per camera (t, offset)): every candidate seam, both axes
-    profiles = {}  # per axis k: t and each camera's seam_profile
+    profiles, spans = {}, {}  # per axis k: t and each camera's seam_profile; the span
     for k in (0, 1):
         # across the seam: from side k to side k + 2, along sides k + 1 and k + 3
         span = 0.5 * (np.linalg.norm(P[(k + 2) % 4] - P[(k + 1) % 4])
@@ -249,7 +250,7 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
         t = np.arange(cfg.min_part, span - cfg.min_part + 1e-9, cfg.step) / span
         found = {cam: seam_profile(grads[cam], corners[cam], k, t, strength[cam],
                                    reach_px=cfg.reach_px) for cam in corners}
-        profiles[k] = (t, found)
+        profiles[k], spans[k] = (t, found), span
         prof = {cam: share for cam, (share, _) in found.items()}
         # the images' seams may lie a few millimetres apart along the cover (the
         # interpolation is in each image, the perspective differs a little): the best of
@@ -276,24 +277,32 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
             heights = _step_in_height(corners, parts, k, Q, grads, desk_plane, cfg, down=down)
             if heights is not None:
                 return Split(parts, heights, ((k + 2) % 4, k), True)
-    for k, (t, found) in profiles.items() if cfg.jog else ():
-        # no step in height: a side that jogs places the seam (a seam line there, in both
-        # images, within ``agree`` of where the side jogs)
+    if not cfg.jog:
+        return None
+    # no step in height: the side that jogs most places the seam, at the strongest seam
+    # line within ``agree`` of the jog in the left image, the right's nearest it
+    jogged = []
+    w = max(int(round(cfg.agree / cfg.step)), 0)
+    for k, (t, found) in profiles.items():
         if not all(np.any(share >= cfg.min_share) for share, _ in found.values()):
             continue  # no seam line in an image: nothing to cut at
-        where = _jog_at(corners, k, grads, cfg, down=down)
-        # each part at least ``min_part`` long: a neighbour's edge near a corner is no jog
-        if where is None or not all(t[0] <= v <= t[-1] for v in where.values()):
+        jog = _jog_at(corners, k, grads, cfg, tol=cfg.agree / spans[k], down=down)
+        # each part about ``min_part`` long or more: a neighbour's edge near a corner is
+        # no jog (``t`` spans the cover's middle, less ``min_part`` at either end)
+        if jog is not None and all(t[0] <= v <= t[-1] for v in jog[1].values()):
+            jogged.append((jog[0], k, jog[1]))
+    for _, k, where in sorted(jogged, key=lambda item: -item[0]):
+        t, found = profiles[k]
+        (share_l, off_l), (share_r, off_r) = found["left"], found["right"]
+        i = int(np.argmin(np.abs(t - where["left"])))
+        window = np.arange(max(i - w, 0), min(i + w + 1, len(t)))
+        i = int(window[np.argmax(share_l[window])])
+        window = np.arange(max(i - w, 0), min(i + w + 1, len(t)))
+        near_best = window[share_r[window] >= share_r[window].max() - 0.05]
+        j = int(near_best[np.argmin(np.abs(near_best - i))])
+        if min(share_l[i], share_r[j]) < cfg.min_share:
             continue
-        w = max(int(round(cfg.agree / cfg.step)), 0)
-        t_seam = {}
-        for cam, (share, offset) in found.items():
-            i = int(np.argmin(np.abs(t - where[cam])))
-            window = np.arange(max(i - w, 0), min(i + w + 1, len(t)))
-            j = int(window[np.argmax(share[window])])
-            if share[j] >= cfg.min_share:
-                t_seam[cam] = (t[j], offset[j])
-        parts = _parts(corners, grads, k, t_seam) if len(t_seam) == len(corners) else None
+        parts = _parts(corners, grads, k, {"left": (t[i], off_l[i]), "right": (t[j], off_r[j])})
         if parts is not None:
             h = float(np.mean(geometry.plane_distance(desk_plane, P)))
             return Split(parts, (h, h), ((k + 2) % 4, k), False)
@@ -443,21 +452,23 @@ def _step_in_height(corners: dict[str, NDArray[np.float64]], parts: Parts, k: in
 
 
 def _jog_at(corners: dict[str, NDArray[np.float64]], k: int, grads: dict[str, Gradients],
-            cfg: SplitConfig, *, down: tuple[float, float]) -> dict[str, float] | None:
+            cfg: SplitConfig, *, tol: float, down: tuple[float, float],
+            ) -> tuple[float, dict[str, float]] | None:
     """Where a side across the seams of axis ``k`` (``k + 1`` or ``k + 3``), not facing the
-    camera, jogs in both images: per camera the point as :func:`seam_profile`'s ``t``
-    (the fraction of the way from side ``k`` to side ``k + 2``), or None where neither
-    side does.
+    camera, jogs in both images: the jog (px, the smaller image's) and per camera the point
+    as :func:`seam_profile`'s ``t`` (the fraction of the way from side ``k`` to side
+    ``k + 2`` along the side), or None where neither side does.
 
     One book's side is one straight edge, whatever is printed across the cover; two
     touching books of different widths, or laid offset across the seam, show one edge
     each, parallel and a few pixels apart. Along the side, the edge's offset across it is
-    read every pixel (:func:`_edge_offsets`, within ``cfg.jog_reach_px``); where those
-    offsets break from one straight line onto another (:func:`_step_along`), it jogs. It
-    counts where the second line lies ``cfg.min_jog_px`` or more off the first there, the
-    same way in both images and within ``cfg.jog_agree_px`` of each other, at points
-    within 3 % of the way of each other. A side facing the camera is not asked: its page
-    block shows several edges below it. The larger jog of the two sides wins.
+    read every pixel of its middle 90 % (:func:`_edge_offsets`, within
+    ``cfg.jog_reach_px``); where those offsets break from one straight line onto another
+    (:func:`_step_along`), it jogs. It counts where the second line lies ``cfg.min_jog_px``
+    or more off the first there, the same way in both images and within
+    ``cfg.jog_agree_px`` of each other, at points within ``tol`` (a fraction of the way)
+    of each other. A side facing the camera is not asked: its page block shows several
+    edges below it. The larger jog of the two sides wins.
     """
     best: tuple[float, dict[str, float]] | None = None
     for s in ((k + 1) % 4, (k + 3) % 4):
@@ -476,12 +487,14 @@ def _jog_at(corners: dict[str, NDArray[np.float64]], k: int, grads: dict[str, Gr
             # side k + 1 runs from side k to side k + 2, side k + 3 the other way
             where[cam] = step[0] / length if s == (k + 1) % 4 else 1.0 - step[0] / length
             jogs.append(step[1])
-        if len(jogs) == len(corners) and min(abs(j) for j in jogs) >= cfg.min_jog_px \
-                and len({np.sign(j) for j in jogs}) == 1 and np.ptp(jogs) <= cfg.jog_agree_px \
-                and np.ptp(list(where.values())) <= 0.03 \
-                and (best is None or min(abs(j) for j in jogs) > best[0]):
-            best = (min(abs(j) for j in jogs), where)
-    return None if best is None else best[1]
+        if len(jogs) < len(corners):
+            continue
+        jog = min(abs(j) for j in jogs)
+        if jog >= cfg.min_jog_px and len({np.sign(j) for j in jogs}) == 1 \
+                and np.ptp(jogs) <= cfg.jog_agree_px and np.ptp(list(where.values())) <= tol \
+                and (best is None or jog > best[0]):
+            best = (jog, where)
+    return best
 
 
 def _edge_offsets(grad: Gradients, a: NDArray[np.float64], b: NDArray[np.float64],
@@ -493,16 +506,16 @@ def _edge_offsets(grad: Gradients, a: NDArray[np.float64], b: NDArray[np.float64
     the side's median peak (no edge there)."""
     length = float(np.linalg.norm(b - a))
     t = np.arange(0.05 * length, 0.95 * length, 1.0)
+    if len(t) == 0:
+        return t, t.copy()
     offsets = np.arange(-reach_px, reach_px + 0.5, 1.0)
-    d = (b - a) / max(length, 1e-9)
-    pts = a + t[:, None] * d
+    pts = a + t[:, None] * (b - a) / length
     gx, gy = grad.sample(pts[:, None, 0] + offsets[None, :] * inward[0],
                          pts[:, None, 1] + offsets[None, :] * inward[1])
     g = np.abs(gx * inward[0] + gy * inward[1])  # (T, O)
-    k = np.argmax(g, axis=1)
-    peak = g[np.arange(len(t)), k]
-    e = np.where(peak >= 0.5 * np.median(peak), offsets[k], np.nan) if len(t) else offsets[k]
-    return t, e
+    best = np.argmax(g, axis=1)
+    peak = g[np.arange(len(t)), best]
+    return t, np.where(peak >= 0.5 * np.median(peak), offsets[best], np.nan)
 
 
 def _step_along(t: NDArray[np.float64], e: NDArray[np.float64], min_run: int = 10,
@@ -521,26 +534,28 @@ def _step_along(t: NDArray[np.float64], e: NDArray[np.float64], min_run: int = 1
     n = len(e)
     if n < 2 * min_run:
         return None
-
-    def fits(t: NDArray[np.float64], e: NDArray[np.float64]):  # type: ignore[no-untyped-def]
-        # for every prefix: the least-squares line (alpha + beta t) and its squared residual
-        c = [np.cumsum(v) for v in (np.ones_like(t), t, e, t * t, t * e, e * e)]
-        k, st, se, stt, ste, see = c
-        det = k * stt - st * st
-        with np.errstate(divide="ignore", invalid="ignore"):
-            beta = np.where(det > 0, (k * ste - st * se) / det, 0.0)
-        alpha = (se - beta * st) / k
-        return alpha, beta, np.maximum(see - alpha * se - beta * ste, 0.0)
-
-    a0, b0, r0 = fits(t, e)  # prefixes: samples [0, i]
-    a1, b1, r1 = (v[::-1] for v in fits(t[::-1], e[::-1]))  # suffixes: samples [i, n)
-    i = np.arange(min_run, n - min_run + 1)  # the first run is [0, i), the second [i, n)
-    cost = r0[i - 1] + r1[i]
-    j = int(i[np.argmin(cost)])
+    a0, b0, r0 = _prefix_lines(t, e)  # index i: the line through samples [0, i]
+    a1, b1, r1 = (v[::-1] for v in _prefix_lines(t[::-1], e[::-1]))  # i: through [i, n)
+    cut = np.arange(min_run, n - min_run + 1)  # the first run is [0, cut), the second [cut, n)
+    j = int(cut[np.argmin(r0[cut - 1] + r1[cut])])
     if max(r0[j - 1] / j, r1[j] / (n - j)) > max_rms ** 2:
         return None
     at = 0.5 * (t[j - 1] + t[j])
     return float(at), float((a1[j] + b1[j] * at) - (a0[j - 1] + b0[j - 1] * at))
+
+
+def _prefix_lines(t: NDArray[np.float64], e: NDArray[np.float64],
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """For every prefix of the samples (``e`` at ``t``), the least-squares line
+    ``alpha + beta t`` through them and its sum of squared residuals: three arrays, index
+    i for the prefix ending at sample i (beta 0 where it is one sample)."""
+    n, st, se, stt, ste, see = (np.cumsum(v) for v in (np.ones_like(t), t, e, t * t, t * e,
+                                                       e * e))
+    det = n * stt - st * st
+    with np.errstate(divide="ignore", invalid="ignore"):
+        beta = np.where(det > 0, (n * ste - st * se) / det, 0.0)
+    alpha = (se - beta * st) / n
+    return alpha, beta, np.maximum(see - alpha * se - beta * ste, 0.0)
 
 
 def _faces_camera(corners: dict[str, NDArray[np.float64]], s: int,

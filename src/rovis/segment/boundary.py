@@ -9,7 +9,7 @@ orders their corners (eq. 1).
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import cv2
@@ -383,15 +383,16 @@ def two_sided_candidates(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
 
 def refine_quad(grad: Gradients, corners: NDArray[np.float64], *,
                 down: tuple[float, float] = (0.0, 1.0),
-                half_width: float = 3.0) -> NDArray[np.float64]:
+                half_width: float | Sequence[float] = 3.0) -> NDArray[np.float64]:
     """Sub-pixel corners (4, 2): each side refit to the gradient, neighbours intersected.
 
     A book seen from above and in front shows its page block below the cover's near sides,
     so a Hough line there may sit on the block's outer edge. On sides facing the camera
     (outward normal along ``down``, the image direction of the world's vertical) the cover
     edge is looked for inside the first one (:func:`cover_edge_offset`). A side that cannot
-    be refit keeps its Hough position. ``half_width``: how far from each side (px) its
-    edge is looked for (:func:`rovis.segment.lines.refine_segment`).
+    be refit keeps its Hough position. ``half_width``: how far from the side (px) its
+    edge is looked for (:func:`rovis.segment.lines.refine_segment`), one for all or per
+    side (side s from corner s to s + 1).
     """
     return _refit(grad, corners, down, both=False, half_width=half_width)[0]
 
@@ -438,13 +439,14 @@ def _fit_side(grad: Gradients, corners: NDArray[np.float64], s: int, down: tuple
 
 
 def _refit(grad: Gradients, corners: NDArray[np.float64], down: tuple[float, float], *,
-           both: bool, half_width: float = 3.0,
+           both: bool, half_width: float | Sequence[float] = 3.0,
            ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
     """:func:`refine_quad`'s corners, and (``both``) those without the inward search."""
     inward, plain = [], []
+    widths = np.broadcast_to(np.asarray(half_width, dtype=np.float64), (4,))
     for s in range(4):
         fit_in, fit_plain, fallback, shift = _fit_side(grad, corners, s, down, both=both,
-                                                       half_width=half_width)
+                                                       half_width=float(widths[s]))
         # a side that cannot be refit keeps the segment it was fit from
         inward.append(fit_in if fit_in is not None else fallback)
         if both:
