@@ -264,11 +264,7 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
         peaks = np.flatnonzero((score >= cfg.min_share) & (score >= padded[:-2])
                                & (score > padded[2:]))
         for i in peaks[np.argsort(-score[peaks], kind="stable")][:cfg.max_seams].tolist():
-            # of the right's near-best, the nearest the left's (the same edge of a page
-            # block's face, not its other one)
-            window = np.arange(max(i - w, 0), min(i + w + 1, len(t)))
-            near_best = window[prof["right"][window] >= right[i] - 0.05]
-            j = int(near_best[np.argmin(np.abs(near_best - i))])
+            j = _right_seam(prof["right"], i, w)
             seams.append((float(score[i]), k, {"left": (t[i], found["left"][1][i]),
                                                "right": (t[j], found["right"][1][j])}))
     for _, k, t_seam in sorted(seams, key=lambda item: -item[0]):  # the strongest first
@@ -297,9 +293,7 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
         i = int(np.argmin(np.abs(t - where["left"])))
         window = np.arange(max(i - w, 0), min(i + w + 1, len(t)))
         i = int(window[np.argmax(share_l[window])])
-        window = np.arange(max(i - w, 0), min(i + w + 1, len(t)))
-        near_best = window[share_r[window] >= share_r[window].max() - 0.05]
-        j = int(near_best[np.argmin(np.abs(near_best - i))])
+        j = _right_seam(share_r, i, w)
         if min(share_l[i], share_r[j]) < cfg.min_share:
             continue
         parts = _parts(corners, grads, k, {"left": (t[i], off_l[i]), "right": (t[j], off_r[j])})
@@ -307,6 +301,16 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
             h = float(np.mean(geometry.plane_distance(desk_plane, P)))
             return Split(parts, (h, h), ((k + 2) % 4, k), False)
     return None
+
+
+def _right_seam(share: NDArray[np.float64], i: int, w: int) -> int:
+    """The right image's seam for the left's at index ``i``: of the right's lines within
+    ``w`` indices of it that score within 0.05 of the best there (``share``, the right's
+    :func:`seam_profile`), the nearest ``i`` (the same edge of a page block's face, not
+    its other one)."""
+    window = np.arange(max(i - w, 0), min(i + w + 1, len(share)))
+    near_best = window[share[window] >= share[window].max() - 0.05]
+    return int(near_best[np.argmin(np.abs(near_best - i))])
 
 
 def _parts(corners: dict[str, NDArray[np.float64]], grads: dict[str, Gradients], k: int,
