@@ -33,6 +33,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the print's height test and placing", ["sweep.check=false", "sweep.transfer=false"]),
     ("the height map", ["heightmap.enabled=false"]),
     ("the smooth height map (covers without print)", ["heightmap.smooth=false"]),
+    ("one image's candidate looked for in the other", ["stereo.pool_transfer=false"]),
     ("the facing sides' edge", ["facing.enabled=false"]),
     ("a side on its foot, lifted", ["lift_foot=false"]),
     ("the height from the sides", ["side_height.enabled=false"]),

@@ -317,7 +317,8 @@ def test_settings_by_name_reach_nested_fields_and_name_bad_ones():
 
 def test_a_cover_is_found_in_the_other_image_with_one_side_along_the_epipolar_lines_unseen(scene):
     # a far side of the desk's brightness shows no step in either image: the sides across
-    # the epipolar lines still place the cover; without one of those, no cover
+    # the epipolar lines still place the cover; without one of those, no cover (unless the
+    # caller names that side: find_in_other_view's ``unseen``)
     import cv2
     from dataclasses import replace
     sc, r = scene
@@ -325,6 +326,7 @@ def test_a_cover_is_found_in_the_other_image_with_one_side_along_the_epipolar_li
     gray_l, _ = _ideal_grad(rig, r.left, "left")
     gray_r, grad_r = _ideal_grad(rig, r.right, "right")
     checked = {"along": 0, "across": 0}
+    excused: list[bool] = []
     for b in r.truth["books"]:
         if min(b["visible_left"], b["visible_right"]) < 0.99:
             continue
@@ -349,8 +351,16 @@ def test_a_cover_is_found_in_the_other_image_with_one_side_along_the_epipolar_li
                 assert got is not None and np.abs(got[0] - dst).max() < 1.5  # px
             else:
                 assert got is None
+                # ...unless that side is the one the caller excuses (its own image shows it
+                # along part of its length only): the other three place the cover, though
+                # with one side across the epipolar lines left, less surely (another edge
+                # beside it, the page block's foot, may win the height sweep)
+                got = find_in_other_view(*args, blind, 10.0, gray_from=gray_l, gray_to=gray_r,
+                                         unseen=s)
+                excused.append(got is not None and np.abs(got[0] - dst).max() < 2.5)  # px
             checked[kind] += 1
     assert checked["along"] >= 1 and checked["across"] >= 1
+    assert np.mean(excused) >= 0.6  # (6 of 8 when written)
 
 
 def _table2_scene(i: int):
@@ -437,6 +447,47 @@ def test_a_cover_seen_on_two_sides_is_completed_in_3d():
     assert abs(o.pose.size[2] - book["size"][2]) < 0.004  # m: the height
     np.testing.assert_allclose(sorted(o.pose.size[:2]), sorted(book["size"][:2]), atol=0.01)
     assert near(False) == []
+
+
+def test_one_of_two_plain_books_end_to_end_is_found_from_one_images_candidate():
+    # Table II's scene 12 (250 lx): two plain books of the desk's tone end to end, 246 ×
+    # 116 × 30 and 233 × 102 × 23 mm. Where they touch no edge shows in either image, so
+    # neither is a segmented cover and no pair of candidates makes one (the right image's
+    # Hough lines miss the first's faint front side). The left image's candidate for the
+    # first, refined, ends on the step where the widths differ (its end side seen along
+    # about 40 % of it); looked for in the right image with that side excused, it is the
+    # book. (A pixel or two of its other end's blur puts it ~12 mm low: noticed, left.)
+    sc, r = _table2_scene(12)
+    book = r.truth["books"][0]
+    assert book["cover"] == "plain"
+
+    def near(pool_transfer: bool):
+        res = Detector(sc.rig, with_settings(DetectConfig(),
+                                             [f"stereo.pool_transfer={pool_transfer}"])
+                       ).detect(r.left, r.right)
+        return [o for o in res.objects if np.linalg.norm(o.pose.center - book["center"]) < 0.05]
+
+    found = near(True)
+    assert len(found) == 1
+    o = found[0]
+    assert o.source == "one image"
+    assert np.linalg.norm(o.pose.center[:2] - book["center"][:2]) < 0.015  # m, on the desk
+    np.testing.assert_allclose(sorted(o.pose.size[:2]), sorted(book["size"][:2]), atol=0.01)
+    assert near(False) == []
+
+
+def test_sides_on_found_books():
+    from rovis.pipeline import _sides_on
+
+    a = np.array([[0.0, 0.0], [100.0, 0.0], [100.0, 50.0], [0.0, 50.0]])
+    b = a + [200.0, 0.0]
+    gap = np.array([[101.0, 0.0], [199.0, 1.0], [198.5, 50.0], [101.5, 50.0]])  # between them
+    assert _sides_on(gap, [a, b]).tolist() == [False, True, False, True]
+    assert _sides_on(gap, [a]).sum() == 1
+    assert _sides_on(gap, [a], tol_px=0.5).sum() == 0  # 1-1.5 px away
+    assert _sides_on(gap + [-20.0, 0.0], [a]).tolist() == [False, False, False, True]  # inside
+    assert not _sides_on(gap + [0.0, 80.0], [a, b]).any()  # beyond both
+    assert not _sides_on(gap, []).any()
 
 
 def test_a_cover_a_pixel_off_at_each_corner_is_refit_flat():

@@ -9,7 +9,8 @@
 and, beyond the paper, where no book is yet: the covers one image found looked for in the
 other, stereo's choice among both images' candidate quads (three-sided ones included: a
 cover whose fourth side shows no edge), the covers that stand out of the desk in a stereo
-height map; then each cover's sides moved to its edges (docs/stereo.md).
+height map, one image's candidates looked for in the other; then each cover's sides moved
+to its edges (docs/stereo.md).
 
 A :class:`Detector` keeps what is set up once per rig (undistortion maps) and, in a
 sequence, the controllers' previous optimum (warm start).
@@ -398,6 +399,8 @@ class Detector:
                 desk_plane, texture)
             lap("pose")
         found = [(pair, book) for pair, book, _ in books if book is not None]
+        # each candidate quad of the pool refined once a frame (Detector._from_pool)
+        refined: dict[tuple[str, int], tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
         if desk_plane is None:
             # no height tells a cover from a rectangle printed on it: the cover is the one
             # around it, in its plane
@@ -407,7 +410,7 @@ class Detector:
             # beyond the paper: books among the candidates neither image's selection kept
             # (without the desk plane, nothing tells a book from a flat rectangle of a
             # pattern: on the real chessboard pairs, squares of the board)
-            found += self._from_pool(rig, segs, grads, found, desk_plane, texture)
+            found += self._from_pool(rig, segs, grads, found, desk_plane, texture, refined)
             lap("stereo")
         maps: list[tuple[HeightMap, NDArray[np.float64], HeightMapConfig, int]] = []
         if self.cfg.heightmap.enabled and desk_plane is not None:
@@ -427,6 +430,11 @@ class Detector:
             # out in a dense disparity map where nothing else found a book
             found += self._from_dense_map(rig, grads, ideal, found, desk_plane, texture, maps)
             lap("dense")
+        if self.cfg.stereo.pool_transfer and desk_plane is not None:
+            # beyond the paper: one image's candidates looked for in the other, last
+            found += self._from_pool_one_image(rig, segs, grads, ideal, found, desk_plane,
+                                               texture, refined)
+            lap("stereo")
         # a failed pair whose quad became a book through the one-image search is not lost
         dropped = [(why, pair.left, pair.right) for pair, book, why in books
                    if book is None and not any(
@@ -451,7 +459,7 @@ class Detector:
                     for q in earlier):
                 # a quarter or more of a cover found before lies under none now (a pool
                 # pair that was two books, cut back to one): the candidates looked at again
-                more = self._from_pool(rig, segs, grads, found, desk_plane, texture)
+                more = self._from_pool(rig, segs, grads, found, desk_plane, texture, refined)
                 if more:
                     found += self._fit_extents(rig, segs, grads, more, desk_plane, texture)
                 lap("stereo")
@@ -792,6 +800,8 @@ class Detector:
                    grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
                    desk_plane: NDArray[np.float64],
                    texture: dict[str, NDArray[np.float32]] | None,
+                   refined: dict[tuple[str, int], tuple[NDArray[np.float64],
+                                                        NDArray[np.float64]]] | None = None,
                    ) -> list[tuple[Pair, BookDetection]]:
         """Books from the two images' candidate pools (:attr:`Segmentation.pool`, then
         :attr:`Segmentation.open_pool`) where no book is yet.
@@ -857,10 +867,12 @@ class Detector:
         # epipolar segments are refined, which bounds the time
         order = np.sort(np.argsort(pp.error_px, kind="stable")[:cfg.stereo.pool_max_pairs])
         i, j, pp = i[order], j[order], pp.take(order)
-        refined: dict[tuple[str, int], tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
+        if refined is None:  # (camera, pool index) → refined with and without the inward search
+            refined = {}
 
         def sub_pixel(cam: str, k: int, inward: bool = True) -> NDArray[np.float64]:
             # with and without the inward search at once: most pairs are tried both ways
+            assert refined is not None
             if (cam, k) not in refined:
                 refined[cam, k] = refine_quad_both(grads[cam], pool[cam].corners[k])
             return refined[cam, k][0 if inward else 1]
@@ -984,6 +996,128 @@ class Detector:
             taken["left"].append(pair.left)
             taken["right"].append(pair.right)
             out.append((pair, book))
+        return out
+
+    def _from_pool_one_image(self, rig: StereoRig, segs: dict[str, Segmentation],
+                             grads: dict[str, Gradients], ideal: dict[str, NDArray[np.uint8]],
+                             found: list[tuple[Pair, BookDetection]],
+                             desk_plane: NDArray[np.float64],
+                             texture: dict[str, NDArray[np.float32]] | None,
+                             refined: dict[tuple[str, int], tuple[NDArray[np.float64],
+                                                                  NDArray[np.float64]]],
+                             ) -> list[tuple[Pair, BookDetection]]:
+        """Books where no book is yet from one image's candidate quads
+        (:attr:`Segmentation.pool` and :attr:`Segmentation.open_pool`), each looked for in
+        the other image (:func:`rovis.stereo.find_in_other_view`).
+
+        What this finds: two plain books end to end, of the desk's tone. Where one's end
+        touches the other's no edge shows, in either image, so neither is a segmented cover
+        and no pair of candidates makes one (the other image's Hough lines miss a faint
+        side); but one image's candidate, refined, lies on the cover's edges, its end on
+        the step where the two books' widths differ (a jog). Such a candidate, whose own
+        image shows each side along ``StereoConfig.pool_transfer_seen`` of it, or all but
+        one (that along ``pool_transfer_part`` at least), is looked for in the other image
+        at each height, that side excused there too. The first
+        ``StereoConfig.pool_transfer_max`` candidates per image that overlap no book and
+        differ from those tried before (a corner more than 3 px away) are tried, the most
+        edge pixels first, those that show two sides or more along less than
+        ``pool_transfer_seen`` at a coarse look (within 3 px) not refined. None may have two
+        sides on the outlines of books found by then
+        (cover and page block), nor print inside that matches best on the desk: desk
+        between books, its sides theirs. Each must pass the pose checks.
+        """
+        cfg = self.cfg.stereo
+        overlap = cfg.transfer_max_overlap
+        Q = {"left": rig.Q_L, "right": rig.Q_R}
+        strength = self._edge_strength(segs)
+        taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
+        up = desk_plane / np.linalg.norm(desk_plane[:3])
+
+        def outlines(cam: str, books: list[tuple[Pair, BookDetection]],
+                     ) -> list[NDArray[np.float64]]:
+            # each book's outline in the image: the hull of its cover and its foot (the
+            # cover dropped onto the desk), page block included
+            out = []
+            for p, b in books:
+                foot = b.corners_world - np.outer(geometry.plane_distance(up, b.corners_world),
+                                                  up[:3])
+                both = np.vstack([getattr(p, cam), geometry.project(Q[cam], foot)])
+                out.append(cv2.convexHull(both.astype(np.float32)).reshape(-1, 2))
+            return out
+
+        def meet(quads: NDArray[np.float64], cam: str) -> NDArray[np.bool_]:
+            # (N, T): whether each quad's box meets each book's quad's box in the image
+            if not taken[cam]:
+                return np.zeros((len(quads), 0), bool)
+            t = np.asarray(taken[cam])
+            return ~np.any((t.min(axis=1)[None] > quads.max(axis=1)[:, None])
+                           | (t.max(axis=1)[None] < quads.min(axis=1)[:, None]), axis=2)
+
+        def over_taken(cam: str, q: NDArray[np.float64],
+                       near: NDArray[np.bool_] | None = None) -> bool:
+            # quad_overlap with the books' quads whose boxes meet q's (``near``: those
+            # of the first len(near) books, known; the rest looked at)
+            if near is None:
+                near = meet(q[None], cam)[0]
+            rest = np.arange(len(near), len(taken[cam]))
+            return any(quad_overlap(q, taken[cam][t]) > overlap
+                       for t in np.concatenate([np.flatnonzero(near), rest]))
+
+        out: list[tuple[Pair, BookDetection]] = []
+        for src, dst in (("left", "right"), ("right", "left")):
+            pool = Quads.concat([segs[src].pool, segs[src].open_pool])
+            around = outlines(src, found + out)
+            tried: list[NDArray[np.float64]] = []
+            near = meet(pool.corners, src)  # (a book found below is looked at in full)
+            for k in np.argsort(-pool.n_f, kind="stable").tolist():
+                if len(tried) >= cfg.pool_transfer_max:
+                    break
+                if over_taken(src, pool.corners[k], near[k]):
+                    continue
+                # the pool holds many variants of one quad (other Hough lines of its sides,
+                # other T_H): one whose every corner is within 3 px of a tried one's adds
+                # nothing (but variants further apart do: one fails the pose checks where
+                # the next passes)
+                if any(np.abs(pool.corners[k] - t).max() <= 3.0 for t in tried):
+                    continue
+                tried.append(pool.corners[k])
+                # a coarse look first (within 3 px): a candidate that shows two sides or
+                # more along less than pool_transfer_seen is not worth a refinement
+                coarse = side_evidence(grads[src], pool.corners[k], 0.5 * strength[src],
+                                       reach_px=3.0)
+                if np.sort(coarse)[1] < cfg.pool_transfer_seen:
+                    continue
+                quad = order_corners(refined[src, k][0] if (src, k) in refined
+                                     else refine_quad(grads[src], pool.corners[k]))
+                if over_taken(src, quad):
+                    continue
+                shown = side_evidence(grads[src], quad, 0.5 * strength[src])
+                part = shown < cfg.pool_transfer_seen
+                if part.sum() > 1 or shown.min() < cfg.pool_transfer_part:
+                    continue
+                if _sides_on(quad, around).sum() >= 2:
+                    continue  # desk between found books: its sides are theirs
+                there = find_in_other_view(quad, Q[src], Q[dst], desk_plane, grads[dst],
+                                           strength[dst], gray_from=ideal[src],
+                                           gray_to=ideal[dst],
+                                           unseen=int(np.argmin(shown)) if part.any() else None,
+                                           cfg=cfg)
+                if there is None or over_taken(dst, there[0]):
+                    continue
+                c = {src: quad, dst: there[0]}
+                if texture is not None and self._print_on_desk(rig, c["left"], desk_plane,
+                                                               texture):
+                    continue  # desk between books, its sides theirs
+                pair, book, _ = self._reconstruct_or_why(
+                    rig, _in_eq1_order(Pair(c["left"], c["right"], float(pool.support[k].mean()),
+                                            0.0, transferred=src, source="candidates")),
+                    desk_plane, texture)
+                if book is None:
+                    continue
+                taken["left"].append(pair.left)
+                taken["right"].append(pair.right)
+                around += outlines(src, [(pair, book)])
+                out.append((pair, book))
         return out
 
     def _lifted(self, rig: StereoRig, grads: dict[str, Gradients],
@@ -1796,6 +1930,26 @@ def _shared(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
     inter, _ = cv2.intersectConvexConvex(a.astype(np.float32), b.astype(np.float32))
     area = cv2.contourArea(a.astype(np.float32))
     return float(inter) / area if area > 0 else 1.0
+
+
+def _sides_on(quad: NDArray[np.float64], regions: Sequence[NDArray[np.float64]], *,
+              tol_px: float = 2.0, share: float = 0.5) -> NDArray[np.bool_]:
+    """Which sides of ``quad`` (4, 2) lie on one of the convex ``regions`` (each (M, 2), a
+    found book's outline in the image, its corners in order): at least ``share`` of the
+    side's points (its middle 80 %) inside the region or within ``tol_px`` of it."""
+    out = np.zeros(4, bool)
+    t = np.linspace(0.1, 0.9, 17)[None, :, None]
+    p = (quad[:, None] + t * (np.roll(quad, -1, axis=0) - quad)[:, None]).reshape(-1, 2)
+    for region in regions:
+        a = np.asarray(region, dtype=np.float64)
+        ab = np.roll(a, -1, axis=0) - a  # (M, 2) the outline's sides
+        ap = p[:, None] - a[None]  # (N, M, 2)
+        cross = ab[:, 0] * ap[..., 1] - ab[:, 1] * ap[..., 0]
+        inside = np.all(cross >= 0, axis=1) | np.all(cross <= 0, axis=1)
+        s = np.clip(np.sum(ap * ab, axis=2) / np.maximum(np.sum(ab * ab, axis=1), 1e-12), 0, 1)
+        dist = np.linalg.norm(ap - s[..., None] * ab, axis=2).min(axis=1)
+        out |= np.mean((inside | (dist <= tol_px)).reshape(4, -1), axis=1) >= share
+    return out
 
 
 def _three_sided(seg: Segmentation, k: int) -> bool:

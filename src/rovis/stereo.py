@@ -75,6 +75,16 @@ class StereoConfig:
     # (Segmentation.pool): pairs that make a flat, book-sized rectangle (pool_pairs).
     pool: bool = True
     pool_max_pairs: int = 300  # refined per frame, the smallest epipolar error first
+    # Where no book is yet, last, a candidate quad of one image (Segmentation.pool) looked
+    # for in the other (find_in_other_view) where, refined, its own image shows its sides:
+    # every side's step along pool_transfer_seen of it (rovis.segment.boundary.side_evidence),
+    # or all but one, which shows it along pool_transfer_part to pool_transfer_seen: a
+    # neighbour of the cover's tone touches that side (two plain books end to end), and
+    # the other image need not show it either.
+    pool_transfer: bool = True
+    pool_transfer_max: int = 24  # candidates looked for per image, the most edge pixels first
+    pool_transfer_seen: float = 0.8
+    pool_transfer_part: float = 0.15
     # Where a quarter or more of a cover found before the extent step lies under no cover
     # after it (a pool pair that was two touching books, cut back to one), the pool is
     # looked at again: the other book's pair had given way to the union
@@ -289,6 +299,7 @@ def find_in_other_view(corners: ArrayLike, Q_from: ArrayLike, Q_to: ArrayLike,
                        desk_plane: ArrayLike | None, grad_to: Gradients, min_strength: float, *,
                        gray_from: NDArray[np.uint8] | None = None,
                        gray_to: NDArray[np.uint8] | None = None,
+                       unseen: int | None = None,
                        cfg: StereoConfig = StereoConfig()) -> tuple[NDArray[np.float64], float] | None:
     """The cover found in one image, looked for in the other by its height above the desk.
 
@@ -322,6 +333,11 @@ def find_in_other_view(corners: ArrayLike, Q_from: ArrayLike, Q_to: ArrayLike,
         other image's Canny low threshold is a natural choice).
     gray_from, gray_to : ndarray, optional
         Both undistorted images: the two covers must then also look alike (``cfg.min_ncc``).
+    unseen : int, optional
+        A side (from corner ``unseen`` to the next) that need show no edge in the other
+        image either, and places no height: its own image shows it along part of its
+        length only (a neighbour of the cover's tone touches it there). Beyond it, every
+        side must show its edge.
 
     Returns
     -------
@@ -345,13 +361,18 @@ def find_in_other_view(corners: ArrayLike, Q_from: ArrayLike, Q_to: ArrayLike,
     motion = 0.5 * (motion + np.roll(motion, -1, axis=0))  # at each side's middle
     w = np.abs(side[:, 0] * motion[:, 1] - side[:, 1] * motion[:, 0]) / np.maximum(
         np.linalg.norm(side, axis=1) * np.linalg.norm(motion, axis=1), 1e-9)
+    if unseen is not None:
+        w[unseen] = 0.0
     score = strength @ w / max(w.sum(), 1e-9)
     best = int(np.argmax(score))
     # Every side must show its edge, except one along the epipolar lines (w < 0.5: within
     # 30° of them), which places no height: the cover of the desk's brightness shows no
-    # step at its far side, in this image as in the other.
+    # step at its far side, in this image as in the other. (The ``unseen`` side instead.)
     weak = strength[best] < min_strength
-    if weak.sum() > 1 or (weak.any() and w[weak].max() >= 0.5):
+    if unseen is not None:
+        if np.delete(weak, unseen).any():
+            return None
+    elif weak.sum() > 1 or (weak.any() and w[weak].max() >= 0.5):
         return None
     refined = refine_quad(grad_to, pred[best])
     if np.linalg.norm(refined - pred[best], axis=1).max() > cfg.max_refine_px:
