@@ -67,6 +67,9 @@ from rovis.undistort import IdealView
 # (a print on it).
 DROP_REASONS = ("degenerate", "too long", "too small", "tilted", "height", "side on desk",
                 "texture height", "skewed", "printed")
+# A frame's pool candidates refined (Detector._from_pool): (camera, index into the pool
+# and open pool concatenated) → corners with and without the inward search, (4, 2) each.
+Refined = dict[tuple[str, int], tuple[NDArray[np.float64], NDArray[np.float64]]]
 # The checks after which a pair is retried with the other quads the closed loop found over
 # it (Segmentation.alternatives): those an outline paired with a cover fails.
 ALTERNATIVE_REASONS = ("tilted", "side on desk", "height", "texture height")
@@ -400,7 +403,7 @@ class Detector:
             lap("pose")
         found = [(pair, book) for pair, book, _ in books if book is not None]
         # each candidate quad of the pool refined once a frame (Detector._from_pool)
-        refined: dict[tuple[str, int], tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
+        refined: Refined = {}
         if desk_plane is None:
             # no height tells a cover from a rectangle printed on it: the cover is the one
             # around it, in its plane
@@ -800,8 +803,7 @@ class Detector:
                    grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
                    desk_plane: NDArray[np.float64],
                    texture: dict[str, NDArray[np.float32]] | None,
-                   refined: dict[tuple[str, int], tuple[NDArray[np.float64],
-                                                        NDArray[np.float64]]] | None = None,
+                   refined: Refined | None = None,
                    ) -> list[tuple[Pair, BookDetection]]:
         """Books from the two images' candidate pools (:attr:`Segmentation.pool`, then
         :attr:`Segmentation.open_pool`) where no book is yet.
@@ -867,15 +869,13 @@ class Detector:
         # epipolar segments are refined, which bounds the time
         order = np.sort(np.argsort(pp.error_px, kind="stable")[:cfg.stereo.pool_max_pairs])
         i, j, pp = i[order], j[order], pp.take(order)
-        if refined is None:  # (camera, pool index) → refined with and without the inward search
-            refined = {}
+        cache: Refined = {} if refined is None else refined
 
         def sub_pixel(cam: str, k: int, inward: bool = True) -> NDArray[np.float64]:
             # with and without the inward search at once: most pairs are tried both ways
-            assert refined is not None
-            if (cam, k) not in refined:
-                refined[cam, k] = refine_quad_both(grads[cam], pool[cam].corners[k])
-            return refined[cam, k][0 if inward else 1]
+            if (cam, k) not in cache:
+                cache[cam, k] = refine_quad_both(grads[cam], pool[cam].corners[k])
+            return cache[cam, k][0 if inward else 1]
 
         def flat(left: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[np.bool_]:
             P = geometry.triangulate_dlt(rig.Q_L, rig.Q_R, left.reshape(-1, 2),
@@ -1003,8 +1003,7 @@ class Detector:
                              found: list[tuple[Pair, BookDetection]],
                              desk_plane: NDArray[np.float64],
                              texture: dict[str, NDArray[np.float32]] | None,
-                             refined: dict[tuple[str, int], tuple[NDArray[np.float64],
-                                                                  NDArray[np.float64]]],
+                             refined: Refined,
                              ) -> list[tuple[Pair, BookDetection]]:
         """Books where no book is yet from one image's candidate quads
         (:attr:`Segmentation.pool` and :attr:`Segmentation.open_pool`), each looked for in
@@ -1023,8 +1022,8 @@ class Detector:
         edge pixels first, those that show two sides or more along less than
         ``pool_transfer_seen`` at a coarse look (within 3 px) not refined. None may have two
         sides on the outlines of books found by then
-        (cover and page block), nor print inside that matches best on the desk: desk
-        between books, its sides theirs. Each must pass the pose checks.
+        (cover and page block), nor (with ``texture``) print inside that matches best on
+        the desk: desk between books, its sides theirs. Each must pass the pose checks.
         """
         cfg = self.cfg.stereo
         overlap = cfg.transfer_max_overlap
@@ -1110,7 +1109,7 @@ class Detector:
                     continue  # desk between books, its sides theirs
                 pair, book, _ = self._reconstruct_or_why(
                     rig, _in_eq1_order(Pair(c["left"], c["right"], float(pool.support[k].mean()),
-                                            0.0, transferred=src, source="candidates")),
+                                            0.0, transferred=src)),
                     desk_plane, texture)
                 if book is None:
                     continue

@@ -309,7 +309,7 @@ def find_in_other_view(corners: ArrayLike, Q_from: ArrayLike, Q_to: ArrayLike,
     strongest edges (median gradient across each, best of ±1 px, weighted by how much the
     side crosses the epipolar lines) wins if every side reaches ``min_strength`` (but one
     within 30° of the epipolar lines may fall short: beyond the paper, a far side of the
-    desk's brightness shows no step); its sides are refit to the gradient (:func:`rovis.segment.boundary.refine_quad`). Used for
+    desk's brightness shows no step; with ``unseen``, that side instead); its sides are refit to the gradient (:func:`rovis.segment.boundary.refine_quad`). Used for
     covers the segmentation found in one image only: their edges are often there in the
     other image too, just below what its Hough stage kept.
 
@@ -346,6 +346,8 @@ def find_in_other_view(corners: ArrayLike, Q_from: ArrayLike, Q_to: ArrayLike,
         above the desk (metres), or without the desk plane the distance along the centre
         ray (metres).
     """
+    if unseen is not None and not 0 <= unseen < 4:
+        raise ValueError(f"unseen: expected a side 0-3, got {unseen}")
     c = np.asarray(corners, dtype=np.float64).reshape(4, 2)
     Q_from, Q_to = np.asarray(Q_from, dtype=np.float64), np.asarray(Q_to, dtype=np.float64)
     swept = (_over_heights(c, Q_from, Q_to, np.asarray(desk_plane, dtype=np.float64), cfg)
