@@ -428,6 +428,12 @@ def test_a_plain_cover_showing_two_sides_is_found_by_stereo_among_two_sided_cand
     assert near(False) == []
 
 
+def _near_book(sc, r, book, settings: list[str]):
+    """The detections within 5 cm of ``book`` with these settings."""
+    res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
+    return [o for o in res.objects if np.linalg.norm(o.pose.center - book["center"]) < 0.05]
+
+
 def test_a_cover_seen_on_two_sides_is_completed_in_3d():
     # Table II's scene 21: a plain cover of the desk's brightness, 233 × 102 × 23 mm, two
     # adjacent sides seen in each image. Each image closes the other two where its own
@@ -437,19 +443,14 @@ def test_a_cover_seen_on_two_sides_is_completed_in_3d():
     book = r.truth["books"][1]
     assert book["cover"] == "plain"
 
-    def near(complete: bool):
-        res = Detector(sc.rig, with_settings(DetectConfig(), [f"complete.enabled={complete}"])
-                       ).detect(r.left, r.right)
-        return [o for o in res.objects if np.linalg.norm(o.pose.center - book["center"]) < 0.05]
-
-    found = near(True)
+    found = _near_book(sc, r, book, ["complete.enabled=true"])
     assert len(found) == 1
     o = found[0]
     assert o.source == "candidates"
     assert np.linalg.norm(o.pose.center - book["center"]) < 0.01  # m
     assert abs(o.pose.size[2] - book["size"][2]) < 0.004  # m: the height
     np.testing.assert_allclose(sorted(o.pose.size[:2]), sorted(book["size"][:2]), atol=0.01)
-    assert near(False) == []
+    assert _near_book(sc, r, book, ["complete.enabled=false"]) == []
 
 
 def test_one_of_two_plain_books_end_to_end_is_found_from_one_images_candidate():
@@ -464,19 +465,13 @@ def test_one_of_two_plain_books_end_to_end_is_found_from_one_images_candidate():
     book = r.truth["books"][0]
     assert book["cover"] == "plain"
 
-    def near(pool_transfer: bool):
-        res = Detector(sc.rig, with_settings(DetectConfig(),
-                                             [f"stereo.pool_transfer={pool_transfer}"])
-                       ).detect(r.left, r.right)
-        return [o for o in res.objects if np.linalg.norm(o.pose.center - book["center"]) < 0.05]
-
-    found = near(True)
+    found = _near_book(sc, r, book, ["stereo.pool_transfer=true"])
     assert len(found) == 1
     o = found[0]
     assert o.source == "one image"
     assert np.linalg.norm(o.pose.center[:2] - book["center"][:2]) < 0.015  # m, on the desk
     np.testing.assert_allclose(sorted(o.pose.size[:2]), sorted(book["size"][:2]), atol=0.01)
-    assert near(False) == []
+    assert _near_book(sc, r, book, ["stereo.pool_transfer=false"]) == []
 
 
 def test_desk_between_found_books_is_no_book(monkeypatch):

@@ -48,8 +48,8 @@ from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
 from rovis.split import SplitConfig, join_halves, split_union_heights
 from rovis.track import TrackConfig, follow
 from rovis.trim import TrimConfig, cut_cover, grow_run, height_profile, map_height, trim_side
-from rovis.stereo import (Match, StereoConfig, find_in_other_view, flat_rectangle, match_quads,
-                          pool_pairs)
+from rovis.stereo import (Match, StereoConfig, _point_segment_distance, find_in_other_view,
+                          flat_rectangle, match_quads, pool_pairs)
 from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pass, on_plane,
                          sweep_heights, texture_height)
 from rovis.undistort import IdealView
@@ -1021,9 +1021,9 @@ class Detector:
         differ from those tried before (a corner more than 3 px away) are tried, the most
         edge pixels first, those that show two sides or more along less than
         ``pool_transfer_seen`` at a coarse look (within 3 px) not refined. None may have two
-        sides on the outlines of books found by then
-        (cover and page block), nor (with ``texture``) print inside that matches best on
-        the desk: desk between books, its sides theirs. Each must pass the pose checks.
+        sides on the outlines of books found by then (cover and page block), nor (with
+        ``texture``) print inside that matches best on the desk: desk between books, its
+        sides theirs. Each must pass the pose checks.
         """
         cfg = self.cfg.stereo
         overlap = cfg.transfer_max_overlap
@@ -1945,8 +1945,7 @@ def _sides_on(quad: NDArray[np.float64], regions: Sequence[NDArray[np.float64]],
         ap = p[:, None] - a[None]  # (N, M, 2)
         cross = ab[:, 0] * ap[..., 1] - ab[:, 1] * ap[..., 0]
         inside = np.all(cross >= 0, axis=1) | np.all(cross <= 0, axis=1)
-        s = np.clip(np.sum(ap * ab, axis=2) / np.maximum(np.sum(ab * ab, axis=1), 1e-12), 0, 1)
-        dist = np.linalg.norm(ap - s[..., None] * ab, axis=2).min(axis=1)
+        dist = _point_segment_distance(p[:, None], a[None], (a + ab)[None]).min(axis=1)
         out |= np.mean((inside | (dist <= tol_px)).reshape(4, -1), axis=1) >= share
     return out
 
