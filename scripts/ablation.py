@@ -43,6 +43,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the trim by the height map", ["trim.enabled=false"]),
     ("the height check by the height map", ["trim.map_height=false"]),
     ("the grow by the height map", ["trim.grow=false"]),
+    ("the grow by the print", ["trim.print_grow=false"]),
 ]
 
 

@@ -16,7 +16,8 @@ from rovis.pipeline import DetectConfig, Detector, Pair, with_settings
 from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
-from rovis.trim import TrimConfig, cut_cover, grow_run, height_profile, map_height, trim_side
+from rovis.trim import (TrimConfig, cut_cover, grow_run, height_profile, map_height, print_grow,
+                        trim_side)
 
 CFG = TrimConfig()
 H = 0.03  # metres, the cover's height in the profile tests
@@ -253,6 +254,67 @@ def test_a_cover_cut_short_is_grown_to_its_end(book_scene, end):
     assert same is book
 
 
+@pytest.mark.parametrize("end", [0, 1])
+def test_a_cover_cut_short_is_grown_to_its_end_by_its_print(book_scene, end):
+    sc, r = book_scene
+    det, res, f, texture, _ = _frame(sc, r)
+    truth = np.asarray(sc.books[0].corners)[:4]
+    a = 0 if np.linalg.norm(truth[1] - truth[0]) > np.linalg.norm(truth[2] - truth[1]) else 1
+    u = (truth[a + 1] - truth[a]) / np.linalg.norm(truth[a + 1] - truth[a])
+    short = truth.copy()
+    if end == 0:
+        short[[a, (a + 3) % 4]] += 0.04 * u
+    else:
+        short[[a + 1, a + 2]] -= 0.04 * u
+    pair, book, why = _book(det, f, short, texture)
+    assert book is not None, why
+    (_, grown), = det._grown_by_print(f.rig, res.segmentation, f.grads, [(pair, book)],
+                                      f.desk_plane, texture)
+    assert max(grown.pose.size[:2]) == pytest.approx(0.20, abs=0.004)  # m
+    assert np.linalg.norm(grown.pose.center[:2] - np.asarray(sc.books[0].center)[:2]) < 0.004
+    # another book lies over the outer 15 mm of the cut-off end (and 20 cm beyond): the
+    # strip is partly its, not this cover's, though the grown cover would overlap it by
+    # under a tenth
+    outward = u if end == 1 else -u
+    far = [a + 1, a + 2] if end == 1 else [a, (a + 3) % 4]
+    near = [a, (a + 3) % 4] if end == 1 else [a + 1, a + 2]
+    beyond = truth.copy()
+    beyond[near] = truth[far] - 0.015 * outward
+    beyond[far] = truth[far] + 0.20 * outward
+    other = Pair(geometry.project(f.rig.Q_L, beyond), geometry.project(f.rig.Q_R, beyond),
+                 1.0, 0.0)
+    (_, kept), _ = det._grown_by_print(f.rig, res.segmentation, f.grads,
+                                       [(pair, book), (other, book)], f.desk_plane, texture)
+    assert kept is book
+    # the whole cover stays as it is: beyond its sides the desk lines up lower
+    pair, book, _ = _book(det, f, truth, texture)
+    (_, same), = det._grown_by_print(f.rig, res.segmentation, f.grads, [(pair, book)],
+                                     f.desk_plane, texture)
+    assert same is book
+
+
+def test_print_grow_moves_a_side_to_the_edge_where_the_print_ends(book_scene):
+    sc, r = book_scene
+    det, res, f, texture, _ = _frame(sc, r)
+    truth = np.asarray(sc.books[0].corners)[:4]
+    a = 0 if np.linalg.norm(truth[1] - truth[0]) > np.linalg.norm(truth[2] - truth[1]) else 1
+    u = (truth[a + 1] - truth[a]) / np.linalg.norm(truth[a + 1] - truth[a])
+    short = truth.copy()
+    short[[a + 1, a + 2]] -= 0.05 * u  # side a + 1 (corner a + 1 to a + 2) 5 cm in
+    Q = {"left": f.rig.Q_L, "right": f.rig.Q_R}
+    strength = det._edge_strength(res.segmentation)
+    grow = lambda P, s, cfg=CFG: print_grow(P, s, 0.03, Q, f.grads, strength, texture,  # noqa: E731
+                                            f.desk_plane, det.cfg.extent, cfg)
+    assert grow(short, a + 1) == pytest.approx(0.05, abs=0.003)
+    # a side at the cover's edge stays, as do the others of the short cover
+    assert grow(truth, a + 1) == 0.0
+    assert grow(short, (a + 3) % 4) == 0.0
+    # farther out than print_reach: not looked for
+    assert grow(short, a + 1, replace(CFG, print_reach=0.04)) == 0.0
+    # a move under print_min is left alone (the page block's foot lies that near)
+    assert grow(short, a + 1, replace(CFG, print_min=0.06)) == 0.0
+
+
 def test_grow_run_ends_where_the_map_leaves_the_cover_height():
     Q = np.array([[1000.0, 0.0, 0.0, 0.0], [0.0, 1000.0, 0.0, 0.0], [0.0, 0.0, -1.0, 1.0]])
     height = np.zeros((400, 400), np.float32)
@@ -289,3 +351,9 @@ def test_bad_settings_are_refused():
         TrimConfig(grow_min=0.0)
     with pytest.raises(ValueError, match="bad grow_min_same"):
         TrimConfig(grow_continuation=2.0)
+    with pytest.raises(ValueError, match="bad print_reach"):
+        TrimConfig(print_min=0.0)
+    with pytest.raises(ValueError, match="bad print_edges"):
+        TrimConfig(print_edges=0)
+    with pytest.raises(ValueError, match="bad print_continuation"):
+        TrimConfig(print_max_overlap=1.5)

@@ -47,7 +47,8 @@ from rovis.segment.boundary import Fit, refine_quad, refine_quad_both, refine_si
 from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
 from rovis.split import SplitConfig, join_halves, split_union_heights
 from rovis.track import TrackConfig, follow
-from rovis.trim import TrimConfig, cut_cover, grow_run, height_profile, map_height, trim_side
+from rovis.trim import (TrimConfig, cut_cover, grow_run, height_profile, map_height, print_grow,
+                        trim_side)
 from rovis.stereo import (Match, StereoConfig, _point_segment_distance, find_in_other_view,
                           flat_rectangle, match_quads, pool_pairs)
 from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pass, on_plane,
@@ -483,6 +484,10 @@ class Detector:
         # ...and one that stops short of where the maps go on at its height, grown
         if self.cfg.trim.grow and read and desk_plane is not None:
             found = self._grown(rig, segs, grads, found, desk_plane, texture, read)
+            lap("trim")
+        # ...and one whose print goes on beyond a side, grown to the cover's edge
+        if self.cfg.trim.print_grow and texture is not None and desk_plane is not None:
+            found = self._grown_by_print(rig, segs, grads, found, desk_plane, texture)
             lap("trim")
         # beyond the paper: one cover found as two books, cut at a printed band, joined
         # (after the steps that move each part's outer sides to the cover's edges)
@@ -1315,6 +1320,55 @@ class Detector:
                 if d <= 0:
                     continue
                 grown = _moved(P, s, np.array([d]))[0]
+                if self.cfg.extent.height_check and _on_desk(grown, s, Q, grads, up, drop,
+                                                              self.cfg.extent):
+                    continue
+                if cfg.grow_foot and not _foot_is_edge(grown, s, Q, grads, strength, drop,
+                                                       self.cfg.extent):
+                    continue
+                P, moved = grown, True
+            if not moved:
+                continue
+            left = geometry.project(rig.Q_L, P)
+            if any(quad_overlap(left, p.left) > overlap for k, (p, _) in enumerate(out) if k != i):
+                continue
+            trial = replace(pair, left=left, right=geometry.project(rig.Q_R, P))
+            new_pair, new_book, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
+            if new_book is not None:
+                out[i] = (new_pair, new_book)
+        return out
+
+    def _grown_by_print(self, rig: StereoRig, segs: dict[str, Segmentation],
+                        grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
+                        desk_plane: NDArray[np.float64],
+                        texture: dict[str, NDArray[np.float32]],
+                        ) -> list[tuple[Pair, BookDetection]]:
+        """Each cover whose print goes on, at its height, beyond a side (a title band or a
+        printed frame taken for its edge), that side moved out to the cover's edge
+        (:func:`rovis.trim.print_grow`); guarded as :meth:`_grown`."""
+        cfg = self.cfg.trim
+        Q = {"left": rig.Q_L, "right": rig.Q_R}
+        up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+        strength = self._edge_strength(segs)
+        overlap = self.cfg.stereo.transfer_max_overlap
+        out = list(found)
+        for i, (pair, book) in enumerate(found):
+            P, height = _on_cover_plane(rig, pair, desk_plane)
+            drop = -float(up @ P.mean(axis=0) + desk_plane[3] / np.linalg.norm(desk_plane[:3])) * up
+            moved = False
+            for s in range(4):
+                d = print_grow(P, s, height, Q, grads, strength, texture, desk_plane,
+                               self.cfg.extent, cfg)
+                if d <= 0:
+                    continue
+                grown = _moved(P, s, np.array([d]))[0]
+                # the strip added lies over no other book (a neighbour of the same height
+                # and print lines up at that height too)
+                added = geometry.project(rig.Q_L, np.array([P[s], P[(s + 1) % 4],
+                                                            grown[(s + 1) % 4], grown[s]]))
+                if any(_shared(added, p.left) > cfg.print_max_overlap
+                       for k, (p, _) in enumerate(out) if k != i):
+                    continue
                 if self.cfg.extent.height_check and _on_desk(grown, s, Q, grads, up, drop,
                                                               self.cfg.extent):
                     continue

@@ -15,6 +15,11 @@ onto the edge both images show (:func:`rovis.heightmap.snap_sides`, that side on
 Before that, :func:`map_height` reads the maps over the cover's middle: a plain cover
 whose sides misled stereo by a centimetre or more in height is laid at the maps' height
 (the pipeline's ``Detector._at_map_height``).
+
+:func:`grow_run` reads the maps beyond each side, for a cover cut short at a printed band
+to grow to where they leave its height; :func:`print_grow` asks the cover's print instead,
+where the maps are too coarse to tell (a thin book): the strip beyond the side lines up
+between the images at the cover's height up to its true edge, and not past it.
 """
 
 from __future__ import annotations
@@ -25,7 +30,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rovis import geometry
+from rovis.extent import ExtentConfig, _hits, _moved, _side_scores
 from rovis.heightmap import HeightMap
+from rovis.segment.edges import Gradients
+from rovis.sweep import Sweep, sweep_heights
 
 
 @dataclass(frozen=True)
@@ -61,6 +69,18 @@ class TrimConfig:
     of the way; with ``grow_foot``, where the new side's page block shows, its foot must be
     an edge in each image that shows it (a shadow's or the desk's line beyond the block has
     no block of its own).
+
+    The grow by print (``print_grow``, :func:`print_grow`), where the maps cannot tell (a
+    thin book, a cover whose sides carry no edge beyond a band): a side moves out to an
+    edge both images show, at least ``print_min`` and at most ``print_reach`` beyond it,
+    where the strip between lines up between the images at the cover's height (the sweep's
+    best within the tolerance above, NCC at least ``print_min_ncc`` and ``print_margin``
+    above the desk's; each ``print_piece`` of it best within the tolerance) and the strip
+    ``print_beyond`` wide past the edge does not; the first ``print_edges`` edges beyond
+    the side are tried, nearest first (an edge whose far side is cover too was print). One
+    neighbouring side must go on as an edge, in either image, along ``print_continuation``
+    of the way, and the strip added may lie over another book by at most
+    ``print_max_overlap`` of it (in the left image).
     """
 
     enabled: bool = True
@@ -88,6 +108,16 @@ class TrimConfig:
     min_height_move: float = 0.003  # the maps sweep every 3 mm
     min_height_share: float = 0.4
     min_height_agree: float = 0.5
+    print_grow: bool = True
+    print_reach: float = 0.09
+    print_min: float = 0.02  # 15 mm took the page block's foot of covers nearly right
+    print_min_ncc: float = 0.6
+    print_margin: float = 0.05
+    print_max_overlap: float = 0.1
+    print_beyond: float = 0.01
+    print_piece: float = 0.012
+    print_edges: int = 2
+    print_continuation: float = 0.5
 
     def __post_init__(self) -> None:
         problems = [name for name, ok in (
@@ -102,12 +132,21 @@ class TrimConfig:
              and 0 <= self.min_height_agree <= 1),
             ("grow_reach", self.grow_reach > 0 and self.grow_min > 0),
             ("grow_min_same", 0 <= self.grow_min_same <= 1
-             and 0 <= self.grow_continuation <= 1)) if not ok]
+             and 0 <= self.grow_continuation <= 1),
+            ("print_reach", self.print_reach > 0 and self.print_min > 0
+             and self.print_beyond > 0 and self.print_piece > 0),
+            ("print_edges", self.print_edges >= 1),
+            ("print_continuation", 0 <= self.print_continuation <= 1
+             and 0 <= self.print_max_overlap <= 1 and -1 <= self.print_min_ncc <= 1
+             and -2 <= self.print_margin <= 2)) if not ok]
         if problems:
             raise ValueError(f"trim: bad {', '.join(problems)} (strip, min_cut and min_keep "
                              "positive, as are grow_reach and grow_min; span in (0, 1]; "
-                             "min_other, min_height_share, min_height_agree, grow_min_same "
-                             "and grow_continuation in [0, 1]; min_samples from 1 to samples; "
+                             "min_other, min_height_share, min_height_agree, grow_min_same, "
+                             "grow_continuation, print_continuation and print_max_overlap "
+                             "in [0, 1]; print_reach, print_min, print_beyond and "
+                             "print_piece positive, print_edges >= 1, print_min_ncc in "
+                             "[-1, 1], print_margin in [-2, 2]; min_samples from 1 to samples; "
                              "grow_margin of any sign; the "
                              f"rest >= 0), got {self}")
 
@@ -357,3 +396,93 @@ def grow_run(P: NDArray[np.float64], s: int, height: float,
     if last < 0 or np.count_nonzero(same[:last + 1]) < cfg.grow_min_same * (last + 1):
         return 0.0
     return (last + 1) * width
+
+
+def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArray[np.float64]],
+               grads: dict[str, Gradients], min_strength: dict[str, float],
+               texture: dict[str, NDArray[np.float32]], desk_plane: NDArray[np.float64],
+               ext: ExtentConfig, cfg: TrimConfig = TrimConfig()) -> float:
+    """How far side ``s`` of cover ``P`` (4, 3) moves out onto the cover's own edge, as its
+    print tells (metres; 0: not at all).
+
+    A side cut short at a printed band has more cover beyond it: between the two images
+    its print lines up on the cover's plane, while beyond the cover's edge the desk, or
+    the page block's face, lines up at another height. The edges both images show beyond
+    the side (:func:`rovis.extent._side_scores`) are taken nearest first. The strip from
+    the side to an edge must sweep best (:func:`rovis.sweep.sweep_heights`) within the
+    trim's tolerance of ``height``, with an NCC of at least ``cfg.print_min_ncc`` and
+    ``cfg.print_margin`` above the desk's, and each ``cfg.print_piece`` of it best within
+    that tolerance; otherwise (or with no print in it) the side stays. Where the strip
+    ``cfg.print_beyond`` wide beyond the edge does not line up at the cover's height
+    (within half the tolerance), the edge is the cover's: the side moves there if that is
+    at least ``cfg.print_min``. Where it does, the edge was print and the next is tried.
+    """
+    a, b = s, (s + 1) % 4
+    room = min(cfg.print_reach, ext.max_side - max(np.linalg.norm(P[a] - P[(a - 1) % 4]),
+                                                   np.linalg.norm(P[b] - P[(b + 1) % 4])))
+    gap = 0.002  # the edges themselves, left out of the strips
+    if room < cfg.print_min:
+        return 0.0
+    d = np.arange(2 * gap, room + 1e-9, ext.step)
+    moved = _moved(P, s, d)  # (D, 4, 3)
+    edge, strength = _side_scores(moved, a, b, Q, grads, min_strength, ext)
+    tol = max(cfg.tolerance, cfg.tolerance_ratio * height)
+    heights = np.arange(0.0, height + 2 * tol + 1e-9, 0.001)
+    u_a = (moved[0, a] - P[a]) / np.linalg.norm(moved[0, a] - P[a])
+    u_b = (moved[0, b] - P[b]) / np.linalg.norm(moved[0, b] - P[b])
+
+    def sweep(near: float, far: float) -> Sweep | None:
+        # the strip between offsets near and far (metres), a tenth left out at each end
+        A, B = P[a] + near * u_a, P[b] + near * u_b
+        C, D = P[b] + far * u_b, P[a] + far * u_a
+        inset = 0.1 * (B - A)
+        strip = np.array([A + inset, B - inset, C - inset, D + inset])
+        return sweep_heights(texture["left"], texture["right"], Q["left"], Q["right"],
+                             geometry.project(Q["left"], strip), desk_plane, heights, inset=0.0)
+
+    # each run of offsets on an edge: its strongest offset, nearest run first
+    runs, k = [], 0
+    while k < len(d):
+        if not edge[k]:
+            k += 1
+            continue
+        first = k
+        while k + 1 < len(d) and edge[k + 1]:
+            k += 1
+        if first > 0:  # (a run from the first offset is the side's own edge)
+            runs.append(first + int(np.argmax(strength[first:k + 1])))
+        k += 1
+    for k in runs[:cfg.print_edges]:
+        inside = sweep(gap, d[k] - gap)
+        if inside is None or not (abs(inside.best_height - height) <= tol
+                                  and inside.best_ncc >= cfg.print_min_ncc
+                                  and inside.best_ncc - inside.ncc[0] >= cfg.print_margin):
+            return 0.0  # no print to tell, or the strip is no cover: the side stays
+        # ...and no part of it is another surface (a page block's face below the cover)
+        cuts = np.linspace(gap, d[k] - gap, int(np.ceil((d[k] - 2 * gap) / cfg.print_piece)) + 1)
+        parts = [sweep(u, v) for u, v in zip(cuts[:-1], cuts[1:])] if len(cuts) > 2 else []
+        if any(p is not None and abs(p.best_height - height) > tol for p in parts):
+            return 0.0
+        beyond = sweep(d[k] + gap, d[k] + gap + cfg.print_beyond)
+        if beyond is not None and abs(beyond.best_height - height) > 0.5 * tol:
+            if d[k] < cfg.print_min or _continued(P, moved[:k + 1], s, Q, grads, min_strength,
+                                                   ext) < cfg.print_continuation:
+                return 0.0
+            return float(d[k])
+    return 0.0
+
+
+def _continued(P: NDArray[np.float64], moved: NDArray[np.float64], s: int,
+               Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
+               min_strength: dict[str, float], ext: ExtentConfig) -> float:
+    """How far (share of the way) the better of side ``s``'s two neighbouring sides goes
+    on as an edge, in either image, from cover ``P`` (4, 3) out to the last of ``moved``
+    (D, 4, 3), :func:`rovis.extent._moved`'s covers one step apart."""
+    best = 0.0
+    for k in (s, (s + 1) % 4):  # the corners the neighbours run out through
+        for cam in ("left", "right"):
+            start = geometry.project(Q[cam], P[k][None])[0]
+            hit = _hits(grads[cam], start, geometry.project(Q[cam], moved[:, k]),
+                        min_strength[cam], ext.max_angle_deg)
+            best = max(best, float(hit.mean()))
+    return best
