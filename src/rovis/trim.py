@@ -425,7 +425,6 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
         return 0.0
     d = np.arange(2 * gap, room + 1e-9, ext.step)
     moved = _moved(P, s, d)  # (D, 4, 3)
-    edge, strength = _side_scores(moved, a, b, Q, grads, min_strength, ext)
     tol = max(cfg.tolerance, cfg.tolerance_ratio * height)
     heights = np.arange(0.0, height + 2 * tol + 1e-9, 0.001)
     u_a = (moved[0, a] - P[a]) / np.linalg.norm(moved[0, a] - P[a])
@@ -440,6 +439,13 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
         return sweep_heights(texture["left"], texture["right"], Q["left"], Q["right"],
                              geometry.project(Q["left"], strip), desk_plane, heights, inset=0.0)
 
+    # most sides are the cover's own: the print right beyond lines up elsewhere (the
+    # desk, the block's face), and the edges further out need no look (the edge scan is
+    # most of the cost)
+    first = sweep(gap, gap + cfg.print_piece)
+    if first is not None and abs(first.best_height - height) > tol:
+        return 0.0
+    edge, strength = _side_scores(moved, a, b, Q, grads, min_strength, ext)
     # each run of offsets on an edge: its strongest offset, nearest run first
     runs, k = [], 0
     while k < len(d):
