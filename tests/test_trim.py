@@ -1,7 +1,8 @@
 """The height map's checks of each book (rovis.trim): its height over the cover
 (map_height, Detector._at_map_height), the cut where the map leaves it (trim_side,
 cut_cover, Detector._trimmed) and the grow where it goes on beyond a side (grow_run,
-Detector._grown)."""
+Detector._grown); and the grow where the cover's print goes on beyond a side
+(print_grow, Detector._grown_by_print)."""
 
 from __future__ import annotations
 
@@ -303,9 +304,16 @@ def test_print_grow_moves_a_side_to_the_edge_where_the_print_ends(book_scene):
     short[[a + 1, a + 2]] -= 0.05 * u  # side a + 1 (corner a + 1 to a + 2) 5 cm in
     Q = {"left": f.rig.Q_L, "right": f.rig.Q_R}
     strength = det._edge_strength(res.segmentation)
-    grow = lambda P, s, cfg=CFG: print_grow(P, s, 0.03, Q, f.grads, strength, texture,  # noqa: E731
-                                            f.desk_plane, det.cfg.extent, cfg)
+
+    def grow(P, s, cfg=CFG, tex=texture):
+        return print_grow(P, s, 0.03, Q, f.grads, strength, tex, f.desk_plane,
+                          det.cfg.extent, cfg)
+
     assert grow(short, a + 1) == pytest.approx(0.05, abs=0.003)
+    # no neighbouring side going on as an edge all the way: not moved
+    assert grow(short, a + 1, replace(CFG, print_continuation=1.0)) == 0.0
+    # no print to tell: not moved
+    assert grow(short, a + 1, tex={k: np.zeros_like(v) for k, v in texture.items()}) == 0.0
     # a side at the cover's edge stays, as do the others of the short cover
     assert grow(truth, a + 1) == 0.0
     assert grow(short, (a + 3) % 4) == 0.0

@@ -290,6 +290,13 @@ class Pair:
 
 
 
+def _drop(P: NDArray[np.float64], desk_plane: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(3,): what moves a point of cover ``P`` (4, 3) straight down onto the desk (its
+    centre's distance to ``desk_plane`` along the plane's normal, downward)."""
+    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+    return -float(up @ P.mean(axis=0) + desk_plane[3] / np.linalg.norm(desk_plane[:3])) * up
+
+
 def _on_cover_plane(rig: StereoRig, pair: Pair, desk_plane: NDArray[np.float64],
                     ) -> tuple[NDArray[np.float64], float]:
     """A pair's triangulated cover corners (4, 3) flattened onto the plane parallel to the
@@ -1293,50 +1300,22 @@ class Detector:
         """Each cover whose side stops short of where the maps go on at its height (a
         title band, a frame of print inside the cover), that side moved out to the edge
         both images show within that run (:func:`rovis.trim.grow_run`,
-        :class:`rovis.trim.TrimConfig`'s grow settings). A new side stereo puts on the
-        desk is not taken (:func:`rovis.extent._on_desk`, with ``extent.height_check``); a
-        grown cover over more than ``stereo.transfer_max_overlap`` of another book (of the
-        smaller, in the left image) is not kept; the grown cover goes through the pose
-        checks again. The maps' own books are grown too (measured with them)."""
+        :class:`rovis.trim.TrimConfig`'s grow settings), guarded as
+        :meth:`_with_sides_grown` guards. The maps' own books are grown too (measured with
+        them)."""
         cfg = self.cfg.trim
         Q = {"left": rig.Q_L, "right": rig.Q_R}
-        up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
         strength = self._edge_strength(segs)
-        overlap = self.cfg.stereo.transfer_max_overlap
         extent = replace(self.cfg.extent, min_grow=cfg.grow_min)
-        out = list(found)
-        for i, (pair, book) in enumerate(found):
-            P, height = _on_cover_plane(rig, pair, desk_plane)
-            # a cover point straight down onto the desk (as rovis.extent.fit_extent)
-            drop = -float(up @ P.mean(axis=0) + desk_plane[3] / np.linalg.norm(desk_plane[:3])) * up
-            moved = False
-            for s in range(4):
-                limit = grow_run(P, s, height, maps, cfg)
-                if limit <= 0:
-                    continue
-                d = _grow_side(P, s, Q, grads, strength, drop, extent,
-                               limit=limit + cfg.grow_margin,
-                               continuation=cfg.grow_continuation)
-                if d <= 0:
-                    continue
-                grown = _moved(P, s, np.array([d]))[0]
-                if self.cfg.extent.height_check and _on_desk(grown, s, Q, grads, up, drop,
-                                                              self.cfg.extent):
-                    continue
-                if cfg.grow_foot and not _foot_is_edge(grown, s, Q, grads, strength, drop,
-                                                       self.cfg.extent):
-                    continue
-                P, moved = grown, True
-            if not moved:
-                continue
-            left = geometry.project(rig.Q_L, P)
-            if any(quad_overlap(left, p.left) > overlap for k, (p, _) in enumerate(out) if k != i):
-                continue
-            trial = replace(pair, left=left, right=geometry.project(rig.Q_R, P))
-            new_pair, new_book, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
-            if new_book is not None:
-                out[i] = (new_pair, new_book)
-        return out
+
+        def move(P: NDArray[np.float64], s: int, height: float) -> float:
+            limit = grow_run(P, s, height, maps, cfg)
+            if limit <= 0:
+                return 0.0
+            return _grow_side(P, s, Q, grads, strength, _drop(P, desk_plane), extent,
+                              limit=limit + cfg.grow_margin, continuation=cfg.grow_continuation)
+
+        return self._with_sides_grown(rig, grads, strength, found, desk_plane, texture, move)
 
     def _grown_by_print(self, rig: StereoRig, segs: dict[str, Segmentation],
                         grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
@@ -1345,35 +1324,60 @@ class Detector:
                         ) -> list[tuple[Pair, BookDetection]]:
         """Each cover whose print goes on, at its height, beyond a side (a title band or a
         printed frame taken for its edge), that side moved out to the cover's edge
-        (:func:`rovis.trim.print_grow`); guarded as :meth:`_grown`."""
+        (:func:`rovis.trim.print_grow`), guarded as :meth:`_with_sides_grown` guards, and
+        the strip added over no more than ``trim.print_max_overlap`` of it of another book
+        (in the left image: a neighbour of the same height lines up there too)."""
         cfg = self.cfg.trim
         Q = {"left": rig.Q_L, "right": rig.Q_R}
-        up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
         strength = self._edge_strength(segs)
+
+        def move(P: NDArray[np.float64], s: int, height: float) -> float:
+            return print_grow(P, s, height, Q, grads, strength, texture, desk_plane,
+                              self.cfg.extent, cfg)
+
+        return self._with_sides_grown(rig, grads, strength, found, desk_plane, texture, move,
+                                      strip_overlap=cfg.print_max_overlap)
+
+    def _with_sides_grown(self, rig: StereoRig, grads: dict[str, Gradients],
+                          strength: dict[str, float], found: list[tuple[Pair, BookDetection]],
+                          desk_plane: NDArray[np.float64],
+                          texture: dict[str, NDArray[np.float32]] | None,
+                          move: Callable[[NDArray[np.float64], int, float], float], *,
+                          strip_overlap: float | None = None,
+                          ) -> list[tuple[Pair, BookDetection]]:
+        """``found`` with each cover's sides moved out by ``move(P, s, height)`` metres
+        (corners (4, 3) on the cover's plane, side ``s`` from corner ``s`` to ``s + 1``; 0:
+        not moved), side after side. A new side stereo puts on the desk is not taken
+        (:func:`rovis.extent._on_desk`, with ``extent.height_check``), nor one whose page
+        block shows with no edge at its foot (``trim.grow_foot``), nor, with
+        ``strip_overlap``, one whose added strip lies over more than that share of it of
+        another book (left image). A grown cover over more than
+        ``stereo.transfer_max_overlap`` of another book (of the smaller, left image) is
+        not kept; the grown cover goes through the pose checks again."""
+        Q = {"left": rig.Q_L, "right": rig.Q_R}
+        up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
         overlap = self.cfg.stereo.transfer_max_overlap
         out = list(found)
         for i, (pair, book) in enumerate(found):
             P, height = _on_cover_plane(rig, pair, desk_plane)
-            drop = -float(up @ P.mean(axis=0) + desk_plane[3] / np.linalg.norm(desk_plane[:3])) * up
+            drop = _drop(P, desk_plane)
             moved = False
             for s in range(4):
-                d = print_grow(P, s, height, Q, grads, strength, texture, desk_plane,
-                               self.cfg.extent, cfg)
+                d = move(P, s, height)
                 if d <= 0:
                     continue
                 grown = _moved(P, s, np.array([d]))[0]
-                # the strip added lies over no other book (a neighbour of the same height
-                # and print lines up at that height too)
-                added = geometry.project(rig.Q_L, np.array([P[s], P[(s + 1) % 4],
-                                                            grown[(s + 1) % 4], grown[s]]))
-                if any(_shared(added, p.left) > cfg.print_max_overlap
-                       for k, (p, _) in enumerate(out) if k != i):
-                    continue
+                if strip_overlap is not None:
+                    added = geometry.project(rig.Q_L, np.array([P[s], P[(s + 1) % 4],
+                                                                grown[(s + 1) % 4], grown[s]]))
+                    if any(_shared(added, p.left) > strip_overlap
+                           for k, (p, _) in enumerate(out) if k != i):
+                        continue
                 if self.cfg.extent.height_check and _on_desk(grown, s, Q, grads, up, drop,
                                                               self.cfg.extent):
                     continue
-                if cfg.grow_foot and not _foot_is_edge(grown, s, Q, grads, strength, drop,
-                                                       self.cfg.extent):
+                if self.cfg.trim.grow_foot and not _foot_is_edge(grown, s, Q, grads, strength,
+                                                                 drop, self.cfg.extent):
                     continue
                 P, moved = grown, True
             if not moved:

@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rovis import geometry
-from rovis.extent import ExtentConfig, _hits, _moved, _side_scores
+from rovis.extent import ExtentConfig, _hits, _moved, _side_scores, _unit
 from rovis.heightmap import HeightMap
 from rovis.segment.edges import Gradients
 from rovis.sweep import Sweep, sweep_heights
@@ -72,15 +72,19 @@ class TrimConfig:
 
     The grow by print (``print_grow``, :func:`print_grow`), where the maps cannot tell (a
     thin book, a cover whose sides carry no edge beyond a band): a side moves out to an
-    edge both images show, at least ``print_min`` and at most ``print_reach`` beyond it,
-    where the strip between lines up between the images at the cover's height (the sweep's
-    best within the tolerance above, NCC at least ``print_min_ncc`` and ``print_margin``
-    above the desk's; each ``print_piece`` of it best within the tolerance) and the strip
-    ``print_beyond`` wide past the edge does not; the first ``print_edges`` edges beyond
-    the side are tried, nearest first (an edge whose far side is cover too was print). One
-    neighbouring side must go on as an edge, in either image, along ``print_continuation``
-    of the way, and the strip added may lie over another book by at most
-    ``print_max_overlap`` of it (in the left image).
+    edge both images show, at least ``print_min`` and at most ``print_reach`` beyond it
+    (and the book no longer than the extent step's ``max_side``), where the strip between
+    lines up between the images at the cover's height (the sweep's best within the
+    tolerance above, NCC at least ``print_min_ncc`` and ``print_margin`` above the
+    desk's; each ``print_piece`` of it best within the tolerance) and the strip
+    ``print_beyond`` wide past the edge does not (best more than half the tolerance
+    off). The first ``print_piece`` beyond the side is looked at first: a side whose
+    print there lines up at another height stays, unscanned. The first ``print_edges``
+    edges beyond the side are tried, nearest first (an edge whose far side lines up at
+    the cover's height, or shows no print, was print). One neighbouring side must go on
+    as an edge, in either image, along ``print_continuation`` of the way, and the strip
+    added may lie over another book by at most ``print_max_overlap`` of it (in the left
+    image).
     """
 
     enabled: bool = True
@@ -407,28 +411,42 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
 
     A side cut short at a printed band has more cover beyond it: between the two images
     its print lines up on the cover's plane, while beyond the cover's edge the desk, or
-    the page block's face, lines up at another height. The edges both images show beyond
-    the side (:func:`rovis.extent._side_scores`) are taken nearest first. The strip from
-    the side to an edge must sweep best (:func:`rovis.sweep.sweep_heights`) within the
-    trim's tolerance of ``height``, with an NCC of at least ``cfg.print_min_ncc`` and
-    ``cfg.print_margin`` above the desk's, and each ``cfg.print_piece`` of it best within
-    that tolerance; otherwise (or with no print in it) the side stays. Where the strip
-    ``cfg.print_beyond`` wide beyond the edge does not line up at the cover's height
-    (within half the tolerance), the edge is the cover's: the side moves there if that is
-    at least ``cfg.print_min``. Where it does, the edge was print and the next is tried.
+    the page block's face, lines up at another height (:func:`rovis.sweep.sweep_heights`
+    on a strip of the cover's plane; the tolerance is the trim's, the larger of
+    ``cfg.tolerance`` and ``cfg.tolerance_ratio`` of ``height``).
+
+    1. The first ``cfg.print_piece`` beyond the side must sweep best within the tolerance
+       of ``height`` (or show no print): most sides are the cover's own, and are spared
+       the edge scan, most of the cost.
+    2. The edges both images show beyond the side (:func:`rovis.extent._side_scores`,
+       offsets 1 mm apart from 4 mm out, up to ``cfg.print_reach`` or what makes the book
+       ``ext.max_side`` long; a run of offsets from the first one is the side's own edge,
+       not looked at) are taken nearest first, at most ``cfg.print_edges`` of them, each
+       at its strongest offset.
+    3. For an edge at least ``cfg.print_min`` out, the strip from the side to it must
+       sweep best within the tolerance, with an NCC of at least ``cfg.print_min_ncc`` and
+       ``cfg.print_margin`` above the NCC at the desk's height, and each
+       ``cfg.print_piece`` of it (that shows print) best within the tolerance; otherwise,
+       or with no print in it, the side stays. A nearer edge (its strip too narrow to
+       sweep) is judged by the strip beyond it alone.
+    4. Where the strip ``cfg.print_beyond`` wide beyond the edge sweeps best more than
+       half the tolerance from ``height``, the edge is the cover's: the side moves there
+       if it is at least ``cfg.print_min`` out and one neighbouring side goes on as an
+       edge, in either image, along ``cfg.print_continuation`` of the way
+       (:func:`_continued`); else it stays. Where that strip lines up at the cover's
+       height, or shows no print, the edge was print, and the next is tried.
     """
     a, b = s, (s + 1) % 4
     room = min(cfg.print_reach, ext.max_side - max(np.linalg.norm(P[a] - P[(a - 1) % 4]),
                                                    np.linalg.norm(P[b] - P[(b + 1) % 4])))
     gap = 0.002  # the edges themselves, left out of the strips
-    if room < cfg.print_min:
-        return 0.0
     d = np.arange(2 * gap, room + 1e-9, ext.step)
+    if room < cfg.print_min or len(d) == 0:
+        return 0.0
     moved = _moved(P, s, d)  # (D, 4, 3)
     tol = max(cfg.tolerance, cfg.tolerance_ratio * height)
     heights = np.arange(0.0, height + 2 * tol + 1e-9, 0.001)
-    u_a = (moved[0, a] - P[a]) / np.linalg.norm(moved[0, a] - P[a])
-    u_b = (moved[0, b] - P[b]) / np.linalg.norm(moved[0, b] - P[b])
+    u_a, u_b = _unit(P[a] - P[(a - 1) % 4]), _unit(P[b] - P[(b + 1) % 4])  # as _moved
 
     def sweep(near: float, far: float) -> Sweep | None:
         # the strip between offsets near and far (metres), a tenth left out at each end
@@ -439,36 +457,26 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
         return sweep_heights(texture["left"], texture["right"], Q["left"], Q["right"],
                              geometry.project(Q["left"], strip), desk_plane, heights, inset=0.0)
 
-    # most sides are the cover's own: the print right beyond lines up elsewhere (the
-    # desk, the block's face), and the edges further out need no look (the edge scan is
-    # most of the cost)
-    first = sweep(gap, gap + cfg.print_piece)
-    if first is not None and abs(first.best_height - height) > tol:
+    outside = sweep(gap, gap + cfg.print_piece)
+    if outside is not None and abs(outside.best_height - height) > tol:
         return 0.0
     edge, strength = _side_scores(moved, a, b, Q, grads, min_strength, ext)
-    # each run of offsets on an edge: its strongest offset, nearest run first
-    runs, k = [], 0
-    while k < len(d):
-        if not edge[k]:
-            k += 1
-            continue
-        first = k
-        while k + 1 < len(d) and edge[k + 1]:
-            k += 1
-        if first > 0:  # (a run from the first offset is the side's own edge)
-            runs.append(first + int(np.argmax(strength[first:k + 1])))
-        k += 1
-    for k in runs[:cfg.print_edges]:
-        inside = sweep(gap, d[k] - gap)
-        if inside is None or not (abs(inside.best_height - height) <= tol
-                                  and inside.best_ncc >= cfg.print_min_ncc
-                                  and inside.best_ncc - inside.ncc[0] >= cfg.print_margin):
-            return 0.0  # no print to tell, or the strip is no cover: the side stays
-        # ...and no part of it is another surface (a page block's face below the cover)
-        cuts = np.linspace(gap, d[k] - gap, int(np.ceil((d[k] - 2 * gap) / cfg.print_piece)) + 1)
-        parts = [sweep(u, v) for u, v in zip(cuts[:-1], cuts[1:])] if len(cuts) > 2 else []
-        if any(p is not None and abs(p.best_height - height) > tol for p in parts):
-            return 0.0
+    peaks = [first + int(np.argmax(strength[first:last + 1]))  # each run's strongest
+             for first, last in _runs(edge) if first > 0]  # (from 0: the side's own edge)
+    for k in peaks[:cfg.print_edges]:
+        if d[k] >= cfg.print_min:
+            inside = sweep(gap, d[k] - gap)
+            if inside is None or not (abs(inside.best_height - height) <= tol
+                                      and inside.best_ncc >= cfg.print_min_ncc
+                                      and inside.best_ncc - inside.ncc[0] >= cfg.print_margin):
+                return 0.0  # no print to tell, or the strip is no cover: the side stays
+            # ...and no part of it is another surface (a page block's face below the cover)
+            cuts = np.linspace(gap, d[k] - gap,
+                               int(np.ceil((d[k] - 2 * gap) / cfg.print_piece)) + 1)
+            parts = ([sweep(u, v) for u, v in zip(cuts[:-1], cuts[1:])] if len(cuts) > 2
+                     else [])
+            if any(p is not None and abs(p.best_height - height) > tol for p in parts):
+                return 0.0
         beyond = sweep(d[k] + gap, d[k] + gap + cfg.print_beyond)
         if beyond is not None and abs(beyond.best_height - height) > 0.5 * tol:
             if d[k] < cfg.print_min or _continued(P, moved[:k + 1], s, Q, grads, min_strength,
@@ -476,6 +484,13 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
                 return 0.0
             return float(d[k])
     return 0.0
+
+
+def _runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """The runs of True in ``mask`` (1-D), each as (first, last) index."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+    return list(zip(starts.tolist(), ends.tolist()))
 
 
 def _continued(P: NDArray[np.float64], moved: NDArray[np.float64], s: int,
