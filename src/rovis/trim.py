@@ -81,7 +81,8 @@ class TrimConfig:
     off). The first ``print_piece`` beyond the side is looked at first: a side whose
     print there lines up at another height stays, unscanned. The first ``print_edges``
     edges beyond the side are tried, nearest first (an edge whose far side lines up at
-    the cover's height, or shows no print, was print). One neighbouring side must go on
+    the cover's height was print; one whose far side shows no print leaves the side
+    where it is). One neighbouring side must go on
     as an edge, in either image, along ``print_continuation`` of the way, and the strip
     added may lie over another book by at most ``print_max_overlap`` of it (in the left
     image).
@@ -434,7 +435,8 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
        if it is at least ``cfg.print_min`` out and one neighbouring side goes on as an
        edge, in either image, along ``cfg.print_continuation`` of the way
        (:func:`_continued`); else it stays. Where that strip lines up at the cover's
-       height, or shows no print, the edge was print, and the next is tried.
+       height, the edge was print, and the next is tried; where it shows no print,
+       nothing tells, and the side stays.
     """
     a, b = s, (s + 1) % 4
     room = min(cfg.print_reach, ext.max_side - max(np.linalg.norm(P[a] - P[(a - 1) % 4]),
@@ -478,7 +480,9 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
             if any(p is not None and abs(p.best_height - height) > tol for p in parts):
                 return 0.0
         beyond = sweep(d[k] + gap, d[k] + gap + cfg.print_beyond)
-        if beyond is not None and abs(beyond.best_height - height) > 0.5 * tol:
+        if beyond is None:
+            return 0.0
+        if abs(beyond.best_height - height) > 0.5 * tol:
             if d[k] < cfg.print_min or _continued(P, moved[:k + 1], s, Q, grads, min_strength,
                                                    ext) < cfg.print_continuation:
                 return 0.0
