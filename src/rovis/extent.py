@@ -295,14 +295,15 @@ def _shrink_side(P: NDArray[np.float64], s: int, runs: NDArray[np.float64],
 
 def _side_scores(moved: NDArray[np.float64], a: int, b: int, Q: dict[str, NDArray[np.float64]],
                  grads: dict[str, Gradients], min_strength: dict[str, float],
-                 cfg: ExtentConfig) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
+                 cfg: ExtentConfig, cams: tuple[str, ...] = ("left", "right"),
+                 ) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
     """For each candidate (D, 4, 3), whether its side from corner ``a`` to ``b`` is an edge
-    in both images (``min_support`` of 24 samples, ends trimmed), and its mean gradient
-    across, summed over the images in units of each image's threshold."""
+    in every image of ``cams`` (``min_support`` of 24 samples, ends trimmed), and its mean
+    gradient across, summed over those images in units of each image's threshold."""
     ok = np.ones(len(moved), bool)
     strength = np.zeros(len(moved))
     u = np.linspace(0.1, 0.9, 24)
-    for cam in ("left", "right"):
+    for cam in cams:
         thr = min_strength[cam]
         pa = geometry.project(Q[cam], moved[:, a])
         pb = geometry.project(Q[cam], moved[:, b])

@@ -462,7 +462,12 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
     outside = sweep(gap, gap + cfg.print_piece)
     if outside is not None and abs(outside.best_height - height) > tol:
         return 0.0
-    edge, strength = _side_scores(moved, a, b, Q, grads, min_strength, ext)
+    # the edge test in the left image first, in the right only where the left passes
+    edge, strength = _side_scores(moved, a, b, Q, grads, min_strength, ext, ("left",))
+    both = np.flatnonzero(edge)
+    edge[both], right = _side_scores(moved[both], a, b, Q, grads, min_strength, ext,
+                                     ("right",))
+    strength[both] += right
     peaks = [first + int(np.argmax(strength[first:last + 1]))  # each run's strongest
              for first, last in _runs(edge) if first > 0]  # (from 0: the side's own edge)
     for k in peaks[:cfg.print_edges]:
