@@ -209,10 +209,7 @@ def test_a_cover_reaching_over_the_desk_is_cut_back_to_its_end(book_scene):
     det, res, f, texture, maps = _frame(sc, r)
     truth = np.asarray(sc.books[0].corners)[:4]
     # the cover with one end 6 cm out over the desk, in both images
-    a = 0 if np.linalg.norm(truth[1] - truth[0]) > np.linalg.norm(truth[2] - truth[1]) else 1
-    u = (truth[a + 1] - truth[a]) / np.linalg.norm(truth[a + 1] - truth[a])
-    long = truth.copy()
-    long[[a + 1, a + 2]] += 0.06 * u
+    long = _end_in(truth, 1, -0.06)
     pair, book, why = _book(det, f, long, texture)
     assert book is not None, why
     assert max(book.pose.size[:2]) == pytest.approx(0.26, abs=0.005)
@@ -228,19 +225,31 @@ def test_a_cover_reaching_over_the_desk_is_cut_back_to_its_end(book_scene):
     assert same is book
 
 
+def _long_axis(truth):
+    """The first corner (0 or 1) of a long side of cover ``truth`` (4, 3), and that side's
+    unit direction."""
+    a = 0 if np.linalg.norm(truth[1] - truth[0]) > np.linalg.norm(truth[2] - truth[1]) else 1
+    return a, (truth[a + 1] - truth[a]) / np.linalg.norm(truth[a + 1] - truth[a])
+
+
+def _end_in(truth, end, by):
+    """Cover ``truth`` (4, 3) with one end of its long sides (0: at corner a, 1: the other)
+    ``by`` metres in (out where negative), as a quad stopping at a title band leaves it."""
+    a, u = _long_axis(truth)
+    short = truth.copy()
+    if end == 0:
+        short[[a, (a + 3) % 4]] += by * u
+    else:
+        short[[a + 1, a + 2]] -= by * u
+    return short
+
+
 @pytest.mark.parametrize("end", [0, 1])
 def test_a_cover_cut_short_is_grown_to_its_end(book_scene, end):
     sc, r = book_scene
     det, res, f, texture, maps = _frame(sc, r)
     truth = np.asarray(sc.books[0].corners)[:4]
-    a = 0 if np.linalg.norm(truth[1] - truth[0]) > np.linalg.norm(truth[2] - truth[1]) else 1
-    u = (truth[a + 1] - truth[a]) / np.linalg.norm(truth[a + 1] - truth[a])
-    short = truth.copy()
-    # one end 4 cm in, as a quad stopping at a title band leaves it
-    if end == 0:
-        short[[a, (a + 3) % 4]] += 0.04 * u
-    else:
-        short[[a + 1, a + 2]] -= 0.04 * u
+    short = _end_in(truth, end, 0.04)
     pair, book, why = _book(det, f, short, texture)
     assert book is not None, why
     assert max(book.pose.size[:2]) == pytest.approx(0.16, abs=0.005)
@@ -260,14 +269,8 @@ def test_a_cover_cut_short_is_grown_to_its_end_by_its_print(book_scene, end):
     sc, r = book_scene
     det, res, f, texture, _ = _frame(sc, r)
     truth = np.asarray(sc.books[0].corners)[:4]
-    a = 0 if np.linalg.norm(truth[1] - truth[0]) > np.linalg.norm(truth[2] - truth[1]) else 1
-    u = (truth[a + 1] - truth[a]) / np.linalg.norm(truth[a + 1] - truth[a])
-    short = truth.copy()
-    if end == 0:
-        short[[a, (a + 3) % 4]] += 0.04 * u
-    else:
-        short[[a + 1, a + 2]] -= 0.04 * u
-    pair, book, why = _book(det, f, short, texture)
+    a, u = _long_axis(truth)
+    pair, book, why = _book(det, f, _end_in(truth, end, 0.04), texture)
     assert book is not None, why
     (_, grown), = det._grown_by_print(f.rig, res.segmentation, f.grads, [(pair, book)],
                                       f.desk_plane, texture)
@@ -298,10 +301,8 @@ def test_print_grow_moves_a_side_to_the_edge_where_the_print_ends(book_scene):
     sc, r = book_scene
     det, res, f, texture, _ = _frame(sc, r)
     truth = np.asarray(sc.books[0].corners)[:4]
-    a = 0 if np.linalg.norm(truth[1] - truth[0]) > np.linalg.norm(truth[2] - truth[1]) else 1
-    u = (truth[a + 1] - truth[a]) / np.linalg.norm(truth[a + 1] - truth[a])
-    short = truth.copy()
-    short[[a + 1, a + 2]] -= 0.05 * u  # side a + 1 (corner a + 1 to a + 2) 5 cm in
+    a, _ = _long_axis(truth)
+    short = _end_in(truth, 1, 0.05)  # side a + 1 (corner a + 1 to a + 2) 5 cm in
     Q = {"left": f.rig.Q_L, "right": f.rig.Q_R}
     strength = det._edge_strength(res.segmentation)
 

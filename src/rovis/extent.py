@@ -102,7 +102,7 @@ def fit_extent(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
     c = P.mean(axis=0)
     P = P - np.outer((P - c) @ up, up)  # onto the cover plane
-    drop = -float(up @ c + desk_plane[3] / np.linalg.norm(desk_plane[:3])) * up  # cover -> desk
+    drop = _drop(P, desk_plane)  # cover -> desk
     moved = False
     runs = _missing_runs(P, Q, grads, min_strength, cfg) if cfg.shrink else None
     for s in range(4 if cfg.shrink else 0):
@@ -144,6 +144,13 @@ def fit_pair_extent(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArra
     if G is None:
         return None
     return {cam: geometry.project(Q[cam], G) for cam in ("left", "right")}
+
+
+def _drop(P: NDArray[np.float64], desk_plane: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(3,): what moves a point of cover ``P`` (4, 3) straight down onto the desk (its
+    centre's distance to ``desk_plane`` along the plane's normal, downward)."""
+    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+    return -float(up @ P.mean(axis=0) + desk_plane[3] / np.linalg.norm(desk_plane[:3])) * up
 
 
 def _moved(P: NDArray[np.float64], s: int, d: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 from rovis import geometry, marker
 from rovis.calib import StereoRig
 from rovis.extent import (CompleteConfig, ExtentConfig, FacingConfig, SideHeightConfig,
-                          _foot_is_edge, _grow_side, _moved, _on_desk, _side_scores,
+                          _drop, _foot_is_edge, _grow_side, _moved, _on_desk, _side_scores,
                           complete_open, fit_pair_extent, height_from_sides, lift_foot,
                           settle_facing_sides)
 from rovis.heightmap import (HeightMap, HeightMapConfig, Rectification, dense_height_map,
@@ -288,13 +288,6 @@ class Pair:
     source: str = "segmentation"
     three_sided: bool = False  # a segmented cover with its fourth side unseen (either image)
 
-
-
-def _drop(P: NDArray[np.float64], desk_plane: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(3,): what moves a point of cover ``P`` (4, 3) straight down onto the desk (its
-    centre's distance to ``desk_plane`` along the plane's normal, downward)."""
-    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
-    return -float(up @ P.mean(axis=0) + desk_plane[3] / np.linalg.norm(desk_plane[:3])) * up
 
 
 def _on_cover_plane(rig: StereoRig, pair: Pair, desk_plane: NDArray[np.float64],

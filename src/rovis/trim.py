@@ -82,10 +82,9 @@ class TrimConfig:
     print there lines up at another height stays, unscanned. The first ``print_edges``
     edges beyond the side are tried, nearest first (an edge whose far side lines up at
     the cover's height was print; one whose far side shows no print leaves the side
-    where it is). One neighbouring side must go on
-    as an edge, in either image, along ``print_continuation`` of the way, and the strip
-    added may lie over another book by at most ``print_max_overlap`` of it (in the left
-    image).
+    where it is). One neighbouring side must go on as an edge, in either image, along
+    ``print_continuation`` of the way, and the strip added may lie over another book by
+    at most ``print_max_overlap`` of it (in the left image).
     """
 
     enabled: bool = True
@@ -115,7 +114,7 @@ class TrimConfig:
     min_height_agree: float = 0.5
     print_grow: bool = True
     print_reach: float = 0.09
-    print_min: float = 0.02  # 15 mm took the page block's foot of covers nearly right
+    print_min: float = 0.02  # at 15 mm covers nearly right grew onto their block's foot
     print_min_ncc: float = 0.6
     print_margin: float = 0.05
     print_max_overlap: float = 0.1
