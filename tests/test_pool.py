@@ -136,7 +136,7 @@ def test_without_the_desk_plane_the_pools_are_not_asked(book, monkeypatch):
     bare = StereoRig.from_arrays(K1=rig.K1, D1=rig.D1, K2=rig.K2, D2=rig.D2, R=rig.R, T=rig.T,
                                  image_size=rig.image_size)
     asked = []
-    monkeypatch.setattr(Detector, "_from_pool", lambda self, *a: asked.append(a) or [])
+    monkeypatch.setattr(Detector, "_from_pool", lambda self, *a, **k: asked.append(a) or [])
     img = np.full((rig.image_size[1], rig.image_size[0]), 90, np.uint8)
     Detector(bare, DetectConfig(use_marker=False)).detect(img, img)
     assert asked == []
@@ -156,6 +156,27 @@ def test_a_book_from_the_three_sided_candidates(book):
     found = Detector(rig, DetectConfig())._from_pool(rig, segs, grads, [], DESK, None)
     assert len(found) == 1
     assert np.linalg.norm(found[0][1].pose.center - P.mean(axis=0)) < 0.005  # metres
+
+
+def test_a_book_from_the_late_candidates_only_when_they_are_asked(book):
+    # the same cover offered only among the other T_H's candidates (Segmentation.late_pool)
+    P, grads, rig = book
+    quads = {cam: geometry.project(Q, P) for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
+    det = Detector(rig, DetectConfig())
+    late = {cam: replace(Segmentation.empty(100.0, 30), late_pool=_pool([q]))
+            for cam, q in quads.items()}
+    assert det._from_pool(rig, late, grads, [], DESK, None) == []  # not before the others
+    found = det._from_pool(rig, late, grads, [], DESK, None, late=True)
+    assert len(found) == 1
+    assert np.linalg.norm(found[0][1].pose.center - P.mean(axis=0)) < 0.005  # metres
+    # one image's quad late, the other's among the candidates: paired too
+    mixed = {"left": late["left"],
+             "right": replace(Segmentation.empty(100.0, 30), pool=_pool([quads["right"]]))}
+    assert len(det._from_pool(rig, mixed, grads, [], DESK, None, late=True)) == 1
+    # a pair of the earlier pools alone is not tried again
+    early = {cam: replace(Segmentation.empty(100.0, 30), pool=_pool([q]))
+             for cam, q in quads.items()}
+    assert det._from_pool(rig, early, grads, [], DESK, None, late=True) == []
 
 
 def test_a_pair_tilted_by_the_inward_cover_edge_search_is_refined_without_it(book, monkeypatch):

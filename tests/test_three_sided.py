@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import cv2
 import numpy as np
 
 from rovis.segment import CascadeController, SegmentConfig, canny, gradients, hough_lines
 from rovis.segment.boundary import evaluate, open_candidates, roi_area
+from rovis.segment.control import late_candidates
 from rovis.segment.lines import support_profile
-from rovis.segment.quads import _canonical, candidate_quads, order_corners, three_sided_quads
+from rovis.segment.quads import (Quads, _canonical, candidate_quads, order_corners,
+                                 three_sided_quads)
 
 H, W = 480, 640
 COVER = np.array([[212.0, 180.0], [452.0, 180.0], [468.0, 330.0], [196.0, 330.0]])  # px
@@ -301,3 +305,50 @@ def test_a_cover_showing_its_far_and_near_sides_is_closed_between_their_ends():
     grad, lines, profile = _chain(shifted)
     assert _worst_to(opposite_sided_quads(lines, profile, grad.shape, area).corners,
                      SLANT) > 10.0
+
+
+
+def test_the_other_evaluations_offer_theirs_late_and_once(monkeypatch):
+    # a dark cover gives the loop an optimum; every other T_H with a cover is asked for its
+    # candidates with sides unseen once, for the late pool
+    import rovis.segment.control as control
+    img = far_side_hidden()
+    img[380:460, 40:200] = 30  # a dark cover on the grey desk, all four sides seen
+    asked, evaluated = [], {}
+    real_open, real_eval = control.open_candidates, control.evaluate
+    monkeypatch.setattr(control, "open_candidates",
+                        lambda grad, ev, *a, **k: asked.append(ev.T_H) or real_open(grad, ev, *a, **k))
+
+    def evaluate(grad, T_H, cfg, **kw):
+        ev = real_eval(grad, T_H, cfg, **kw)
+        evaluated.setdefault(ev.T_H, ev.y)
+        return ev
+
+    monkeypatch.setattr(control, "evaluate", evaluate)
+    cfg = SegmentConfig(three_sided_evaluations=0, union=False, three_sided_support=2.0)
+    seg = CascadeController(cfg, warm_start=False).segment(gradients(img))
+    assert seg.y > 0 and asked[0] == seg.T_H  # the optimum's first, for the open pool
+    others = {T_H for T_H, y in evaluated.items() if y > 0 and T_H != seg.T_H}
+    assert len(others) >= 1
+    assert sorted(asked[1:]) == sorted(others)  # then each other T_H with a cover, once
+    asked.clear()
+    off = CascadeController(replace(cfg, late_open=False), warm_start=False).segment(
+        gradients(img))
+    assert asked == [off.T_H] and len(off.late_pool) == 0
+    np.testing.assert_allclose(off.open_pool.corners, seg.open_pool.corners)
+
+
+def test_the_late_candidates_are_those_no_earlier_pool_holds():
+    # a faint cover (8 grey levels over the desk) shows its three sides at a low T_H only
+    img = far_side_hidden(noise=1.0).astype(np.int16)
+    img = np.where(img > 140, 108, 100).astype(np.uint8)  # the band and the cover, faint
+    grad = gradients(img)
+    cfg = SegmentConfig()
+    low, high = evaluate(grad, 20.0, cfg), evaluate(grad, 120.0, cfg)
+    assert _worst_corner_px(open_candidates(grad, high, cfg).corners) > 10.0  # unseen there
+    late = late_candidates(grad, [low], Quads.empty(), cfg, area=roi_area(grad))
+    assert _worst_corner_px(late.corners) < 3.0  # px
+    near = open_candidates(grad, low, cfg)  # offered earlier: not again
+    again = late_candidates(grad, [low], near, cfg, area=roi_area(grad))
+    assert _worst_corner_px(again.corners) > 10.0
+    assert len(late_candidates(grad, [], Quads.empty(), cfg, area=roi_area(grad))) == 0

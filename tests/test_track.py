@@ -137,7 +137,14 @@ def test_detect_track_follows_between_detections(still, tmp_path, capsys):
     frames = [json.loads(line) for line in out.read_text().splitlines()]
     # frames 0 and 3 detected, 1 and 2 followed
     assert [f["tracked"] for f in frames] == [False, True, True, False]
-    assert all(len(f["objects"]) == len(frames[0]["objects"]) for f in frames)
+    assert all(len(f["objects"]) == len(frames[0]["objects"]) for f in frames[:3])
+    # frame 3's search starts from frame 0's optimum and evaluates fewer T_H, so it may
+    # offer stereo fewer candidates (Segmentation.late_pool): it finds no book frame 0 did
+    # not, and every one frame 0 found other than among the candidates
+    near = lambda o, f: min(np.abs(np.subtract(o["center"], p["center"])).max()
+                            for p in f["objects"]) < 0.005  # metres
+    assert all(near(o, frames[0]) for o in frames[3]["objects"])
+    assert all(near(o, frames[3]) for o in frames[0]["objects"] if o["source"] != "candidates")
     assert "2 frames tracked" in capsys.readouterr().out
 
 

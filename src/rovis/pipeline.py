@@ -434,6 +434,13 @@ class Detector:
             # out in a dense disparity map where nothing else found a book
             found += self._from_dense_map(rig, grads, ideal, found, desk_plane, texture, maps)
             lap("dense")
+        if self.cfg.stereo.pool and desk_plane is not None and any(
+                len(seg.late_pool) for seg in segs.values()):
+            # beyond the paper: the candidates with sides unseen of the closed loop's other
+            # T_H (Segmentation.late_pool), after every other source
+            found += self._from_pool(rig, segs, grads, found, desk_plane, texture, refined,
+                                     late=True)
+            lap("stereo")
         if self.cfg.stereo.pool_transfer and desk_plane is not None:
             # beyond the paper: one image's candidates looked for in the other, last
             found += self._from_pool_one_image(rig, segs, grads, ideal, found, desk_plane,
@@ -808,10 +815,11 @@ class Detector:
                    grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
                    desk_plane: NDArray[np.float64],
                    texture: dict[str, NDArray[np.float32]] | None,
-                   refined: Refined | None = None,
+                   refined: Refined | None = None, *, late: bool = False,
                    ) -> list[tuple[Pair, BookDetection]]:
         """Books from the two images' candidate pools (:attr:`Segmentation.pool`, then
-        :attr:`Segmentation.open_pool`) where no book is yet.
+        :attr:`Segmentation.open_pool`) where no book is yet; with ``late``, only the pairs
+        with a quad of :attr:`Segmentation.late_pool` (the closed loop's other T_H).
 
         The pairs of Hough quads that roughly make a flat, book-sized rectangle
         (:func:`rovis.stereo.pool_pairs`) are refined in both images (Hough corners are
@@ -830,8 +838,11 @@ class Detector:
         cfg = self.cfg
         overlap = cfg.stereo.transfer_max_overlap
         # the full candidates and those with one side unseen (Segmentation.open_pool)
-        pool = {cam: Quads.concat([segs[cam].pool, segs[cam].open_pool])
+        # (the late pool after the others: a refined quad is cached by its index)
+        pool = {cam: Quads.concat([segs[cam].pool, segs[cam].open_pool]
+                                  + ([segs[cam].late_pool] if late else []))
                 for cam in ("left", "right")}
+        early = {cam: len(segs[cam].pool) + len(segs[cam].open_pool) for cam in pool}
         taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
         index = {cam: np.array([k for k, q in enumerate(pool[cam].corners)
                                 if not any(quad_overlap(q, t) > overlap for t in taken[cam])],
@@ -840,6 +851,9 @@ class Detector:
                         rig.Q_L, rig.Q_R, desk_plane=desk_plane,
                         side_range=(0.8 * cfg.min_cover_side, 1.1 * cfg.max_cover_side),
                         cfg=cfg.stereo)
+        if late and len(pp):  # the pairs of the other pools were tried before
+            pp = pp.take(np.flatnonzero((index["left"][pp.left] >= early["left"])
+                                        | (index["right"][pp.right] >= early["right"])))
         if len(pp) == 0:
             return []
         i, j = index["left"][pp.left], index["right"][pp.right]
@@ -996,7 +1010,8 @@ class Detector:
                 rig, _in_eq1_order(Pair(left[a], right[a], quality, float(pp.error_px[a]),
                                         source="candidates")),
                 desk_plane, texture)
-            if book is None:
+            if book is None or (late and book.reprojection_error_px
+                                > cfg.stereo.late_max_reprojection_px):
                 continue
             taken["left"].append(pair.left)
             taken["right"].append(pair.right)

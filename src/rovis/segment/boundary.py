@@ -103,6 +103,11 @@ class SegmentConfig:
     opposite_sided : bool
         With ``two_sided``: also the candidates with two opposite sides seen, joined where
         their edges end (:func:`rovis.segment.quads.opposite_sided_quads`).
+    late_open : bool
+        Beyond the paper: with ``three_sided``, the candidates with sides unseen at every
+        other T_H the closed loop evaluated too, for stereo to pair only after every other
+        source (:attr:`Segmentation.late_pool`). A faint cover shows its sides at a low T_H
+        whose y ranks low: the desk's texture outvotes its short sides there.
     """
 
     n_max: int = 100
@@ -130,6 +135,7 @@ class SegmentConfig:
     two_sided: bool = True
     two_sided_size: int = 400
     opposite_sided: bool = True
+    late_open: bool = True
     quads: QuadConfig = field(default_factory=QuadConfig)
 
 
@@ -191,6 +197,10 @@ class Segmentation:
         as in :attr:`pool`, an unseen side's ``lines`` −1 and ``support`` 0. With
         ``SegmentConfig.two_sided``, followed by the candidates with two sides unseen
         (:func:`two_sided_quads`, :func:`opposite_sided_quads`).
+    late_pool : Quads
+        Beyond the paper: as :attr:`open_pool`, from the closed loop's other evaluations
+        (``SegmentConfig.late_open``), less those near :attr:`pool` or :attr:`open_pool`;
+        stereo pairs them last.
     three_sided : ndarray, shape (K,), bool
         Per cover, whether it is one of the three-sided candidates, kept as a cover
         (``SegmentConfig.three_sided_support``): its fourth side unseen; its ``support``
@@ -208,6 +218,7 @@ class Segmentation:
     alternatives: tuple[NDArray[np.float64], ...] = ()
     pool: Quads = field(default_factory=Quads.empty)
     open_pool: Quads = field(default_factory=Quads.empty)
+    late_pool: Quads = field(default_factory=Quads.empty)
     three_sided: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
 
     def __len__(self) -> int:
@@ -291,16 +302,18 @@ def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
            timing: dict[str, float] | None = None,
            alternatives: tuple[NDArray[np.float64], ...] = (),
            pool: Quads | None = None, pool_size: int = 400,
-           refine: Gradients | None = None, open_pool: Quads | None = None) -> Segmentation:
+           refine: Gradients | None = None, open_pool: Quads | None = None,
+           late_pool: Quads | None = None) -> Segmentation:
     """Refine the chosen covers to sub-pixel corners and order them (eq. 1), on
     ``refine``'s gradients if given (:func:`rovis.segment.edges.linear_gradients`), else on
     ``grad``'s; ``timing`` accumulates the milliseconds under ``"refine"``; ``alternatives``: per cover of ``ev``,
     other quads over it (kept as they are); ``pool``: the candidates for
     :attr:`Segmentation.pool` (default: ``ev``'s own, at most ``pool_size``,
-    :func:`candidate_pool`); ``open_pool``: :attr:`Segmentation.open_pool`'s."""
+    :func:`candidate_pool`); ``open_pool``, ``late_pool``: :attr:`Segmentation.open_pool`'s
+    and :attr:`Segmentation.late_pool`'s."""
     clock = time.perf_counter()
-    open_pool = (canonical_quads(open_pool) if open_pool is not None and len(open_pool)
-                 else Quads.empty())
+    open_pool, late_pool = (canonical_quads(q) if q is not None and len(q) else Quads.empty()
+                            for q in (open_pool, late_pool))
     if pool is None:
         pool = candidate_pool([ev.selection.quads] if ev.selection is not None else [],
                               pool_size)
@@ -308,7 +321,8 @@ def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
     if len(ev.covers) == 0:
         _lap(timing, "refine", clock)
         return Segmentation(np.zeros((0, 4, 2)), np.zeros((0, 4, 2)), np.zeros(0), ev.lines,
-                            ev.T_H, ev.T_HG, ev.y, iterations, pool=pool, open_pool=open_pool)
+                            ev.T_H, ev.T_HG, ev.y, iterations, pool=pool, open_pool=open_pool,
+                            late_pool=late_pool)
     refined, coarse = [], []
     for quad in ev.covers.corners:
         refined.append(order_corners(refine_quad(refine or grad, quad)))
@@ -318,7 +332,8 @@ def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
     support = (ev.covers.support * seen).sum(axis=1) / seen.sum(axis=1)  # of the seen sides
     return Segmentation(np.array(refined), np.array(coarse), support, ev.lines, ev.T_H,
                         ev.T_HG, ev.y, iterations, alternatives, pool=pool,
-                        open_pool=open_pool, three_sided=~seen.all(axis=1))
+                        open_pool=open_pool, late_pool=late_pool,
+                        three_sided=~seen.all(axis=1))
 
 
 def candidate_pool(parts: Iterable[Quads], most: int = 400, duplicate_px: float = 3.0) -> Quads:

@@ -6,7 +6,9 @@ quality y (eq. 2). Inner loop: the Hough threshold T_HG for each T_H, solved exa
 frame's optimum and only climbs locally, falling back to the full search when the scene has
 changed so much that the local optimum is empty. Beyond the paper, the covers other
 evaluated T_H found where the optimum found none are kept too (:func:`with_other_covers`),
-and so are the clearest covers with one side unseen (:func:`with_three_sided_covers`).
+and so are the clearest covers with one side unseen (:func:`with_three_sided_covers`); the
+candidates with sides unseen of the remaining T_H go to stereo last
+(:func:`late_candidates`).
 """
 
 from __future__ import annotations
@@ -105,7 +107,7 @@ class CascadeController:
             if wide.selection is not None:
                 pool.append(candidate_pool([wide.selection.quads], self.cfg.pool_size))
         full = candidate_pool(pool, self.cfg.pool_size)
-        open_pool = None
+        open_pool = late_pool = None
         if self.cfg.three_sided:
             # beyond the paper: covers with one side unseen, at the T_H whose covers were
             # kept and the best few others
@@ -115,8 +117,13 @@ class CascadeController:
                 chosen += list(seen.values())
             best, alternatives, open_pool = with_open_candidates(
                 grad, best, alternatives, chosen, full, self.cfg, area=area, timing=timing)
+            if self.cfg.late_open:
+                rest = [e for e in seen.values() if e.y > 0
+                        and all(e.profile is not c.profile for c in chosen)]
+                late_pool = late_candidates(grad, rest, Quads.concat([full, open_pool]),
+                                            self.cfg, area=area, timing=timing)
         return finish(grad, best, iterations, timing=timing, alternatives=alternatives,
-                      pool=full, refine=refine, open_pool=open_pool)
+                      pool=full, refine=refine, open_pool=open_pool, late_pool=late_pool)
 
     def _full_search(self, run) -> Evaluation:  # type: ignore[no-untyped-def]
         lo, hi = np.log(self.cfg.T_H_range[0]), np.log(self.cfg.T_H_range[1])
@@ -251,3 +258,23 @@ def with_open_candidates(grad: Gradients, best: Evaluation, alternatives: tuple[
             cfg.two_sided_size), Quads.concat([full, open_pool]), cfg.quads.duplicate_px)
         open_pool = Quads.concat([open_pool, two])
     return best, alternatives, open_pool
+
+
+def late_candidates(grad: Gradients, evaluations: Sequence[Evaluation], near: Quads,
+                    cfg: SegmentConfig, *, area: float,
+                    timing: dict[str, float] | None = None) -> Quads:
+    """The candidates with sides unseen (three-sided, then with ``cfg.two_sided`` two-sided)
+    of ``evaluations``, less those ``near`` holds: :attr:`Segmentation.late_pool` (beyond
+    the paper; ``cfg.late_open``). The closed loop asks it of the T_H with covers that
+    :func:`with_open_candidates` was not asked of."""
+    if not evaluations:
+        return Quads.empty()
+    late = without_near(candidate_pool(
+        [open_candidates(grad, e, cfg, area=area, timing=timing) for e in evaluations],
+        cfg.pool_size), near, cfg.quads.duplicate_px)
+    if cfg.two_sided:
+        two = without_near(candidate_pool(
+            [two_sided_candidates(grad, e, cfg, area=area, timing=timing) for e in evaluations],
+            cfg.two_sided_size), Quads.concat([near, late]), cfg.quads.duplicate_px)
+        late = Quads.concat([late, two])
+    return late
