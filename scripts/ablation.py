@@ -26,6 +26,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("covers of the other T_H (segment.union)", ["segment.union=false"]),
     ("three-sided candidates and covers", ["segment.three_sided=false"]),
     ("two-sided candidates", ["segment.two_sided=false", "segment.opposite_sided=false"]),
+    ("the other T_H's candidates, paired last", ["segment.late_open=false"]),
     ("the candidate pool (stereo step 4)", ["stereo.pool=false"]),
     ("completing a candidate in 3D", ["complete.enabled=false"]),
     ("the one-image search (stereo step 3)", ["stereo.transfer=false"]),
