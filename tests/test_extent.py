@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import cv2
 import numpy as np
 import pytest
 
@@ -15,7 +16,8 @@ from rovis.segment import SegmentConfig, gradients
 from rovis.segment.edges import CANNY_LOW_RATIO
 from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book, Light
-from rovis.synth.textures import CoverSpec
+from rovis.synth import textures
+from rovis.synth.textures import COVER_PX_PER_M, CoverSpec
 
 from conftest import ideal_images
 
@@ -276,7 +278,7 @@ def test_a_cover_found_otherwise_is_not_grown_over_a_segmented_one(monkeypatch):
                              source=pair.source)
 
     monkeypatch.setattr(pipeline, "fit_pair_extent",
-                        lambda quads, *args: {"left": union, "right": union}
+                        lambda quads, *args, **kw: {"left": union, "right": union}
                         if np.allclose(quads["left"], a) else None)
     monkeypatch.setattr(Detector, "_reconstruct_or_why",
                         lambda self, rig, pair, *args: (pair, book(pair), ""))
@@ -549,3 +551,60 @@ def test_detect_moves_a_cover_to_its_sides_height(turned_book, enabled):
         assert np.linalg.norm(moved.pose.center[:2] - P[:, :2].mean(axis=0)) < 0.002
     else:
         assert abs(moved.pose.size[2] - THICKNESS) > 0.006
+
+
+FRAME_MARGIN, FRAME_LINE = 0.008, 0.002  # metres: a printed frame's inset and line width
+
+
+def _framed_cover(spec, size_m):
+    """A light cover with a dark line printed FRAME_MARGIN inside its edges (the line
+    FRAME_LINE wide, centred there), in place of rovis.synth.textures.cover."""
+    w, h = (max(8, int(round(v * COVER_PX_PER_M))) for v in size_m)
+    tex = np.full((h, w), spec.albedo, np.float32)
+    m, t = (int(round(v * COVER_PX_PER_M)) for v in (FRAME_MARGIN, FRAME_LINE))
+    cv2.rectangle(tex, (m, m), (w - 1 - m, h - 1 - m), 0.08, t)
+    return tex
+
+
+@pytest.fixture(scope="module")
+def framed_book():
+    """LONE_BOOK with a light cover and a dark frame printed inside its edges: its true
+    corners, projections, gradients, ideal images and the desk plane."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(textures, "cover", _framed_cover)
+        book = replace(LONE_BOOK, cover=CoverSpec(kind="light", albedo=0.9, seed=1))
+        r, grads, Q, rig = _rendered([book])
+    return (np.array(r.truth["books"][0]["corners"]), Q, grads, ideal_images(rig, r),
+            np.asarray(r.truth["desk_plane"]))
+
+
+def _inset(P, d):
+    """Corners of cover P (4, 3) with every side moved inward by d metres."""
+    for s in range(4):
+        P = _side_moved(P, s, -d)
+    return P
+
+
+@pytest.mark.parametrize("edge", [-0.5, 0.5])  # the frame line's inner or outer edge
+def test_a_cover_found_as_its_printed_frame_grows_to_its_edges(framed_book, edge):
+    P, Q, grads, gray, desk = framed_book
+    frame = _inset(P, FRAME_MARGIN - edge * FRAME_LINE)
+    strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
+    corners = {cam: geometry.project(Q[cam], frame) for cam in Q}
+    args = (corners, Q, grads, {"left": strength, "right": strength}, desk)
+    # without the frame step nothing grows it: beyond the frame's corners its neighbouring
+    # sides run over the plain margin, no edge
+    assert fit_pair_extent(*args, replace(ExtentConfig(), frame=False), gray=gray) is None
+    new = fit_pair_extent(*args, ExtentConfig(), gray=gray)
+    assert new is not None
+    G = geometry.triangulate(Q["left"], Q["right"], new["left"], new["right"])
+    assert np.abs(_sizes(G) - _sizes(P)).max() < 0.003  # metres
+    assert np.linalg.norm(G.mean(axis=0)[:2] - P.mean(axis=0)[:2]) < 0.002
+
+
+def test_a_cover_found_whole_is_no_frame(framed_book):
+    # beyond the cover's own edges lie the desk and its page block, not its margin
+    P, Q, grads, gray, desk = framed_book
+    strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
+    assert extent.grow_frame(P, Q, grads, gray, {"left": strength, "right": strength},
+                             desk) is None

@@ -69,6 +69,15 @@ class ExtentConfig:
     gap_edge_ratio: float = 0.35  # of a side's median edge strength: where its edge is missing
     height_check: bool = True  # stereo height of a moved side's edge: see _on_desk, _at_cover_height
     height_sigma: float = 0.5  # ...asked where stereo places the edge this well, of the cover's height
+    # A cover found as the frame printed inside it (grow_frame): its four sides thin lines
+    # with the cover's tone on both sides, each moved out to the next edge, found within
+    # frame_min-frame_max where the margin has the tone inside the frame and what lies
+    # beyond differs by more than frame_tone (of the brighter, or 4 grey levels)
+    frame: bool = True
+    frame_min: float = 0.003  # (a line's own other edge, blurred, is nearer)
+    frame_max: float = 0.02
+    frame_tone: float = 0.12
+    frame_agree: float = 0.006  # the four sides' moves differ at most so (an even margin)
 
 
 def fit_extent(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
@@ -129,9 +138,87 @@ def fit_extent(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     return P if moved else None
 
 
+def grow_frame(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
+               grads: dict[str, Gradients], gray: dict[str, NDArray[np.uint8]],
+               min_strength: dict[str, float], desk_plane: NDArray[np.float64],
+               cfg: ExtentConfig = ExtentConfig()) -> NDArray[np.float64] | None:
+    """The cover's corners with each side moved out to the cover's edge where the quad is
+    a frame printed inside the cover, or None where it is not.
+
+    A line printed at an even margin inside a cover's edges is as strong a quad as the
+    cover's outline, and stronger where the cover's border is of the desk's tone.
+    :func:`fit_extent` cannot grow its sides: beyond the frame's corners the neighbouring
+    sides run over the plain margin, no edge. A frame's side is a thin line with the
+    cover's tone on both sides of it; a cover's edge has the cover on one side and the
+    desk, its page block or a shadow on the other. So each side moves out to the nearest
+    edge in both images (:func:`_side_scores`) between ``cfg.frame_min`` and
+    ``cfg.frame_max`` whose inner strip (1–2.5 mm) has the cover's tone inside the line
+    (1.5–4 mm inside the side, or 4.5–7 mm where the quad lies on the line's outer edge;
+    within ``cfg.frame_tone``) and whose outer strip (1–3.5 mm) does not, at the edge's
+    strongest within 3 mm; every side must find one, the four moves within
+    ``cfg.frame_agree`` of each other (the margin is even), and no moved side may lie on
+    an edge stereo puts near the desk (:func:`_on_desk`). Arguments as
+    :func:`fit_extent`; ``gray``: both ideal images.
+    """
+    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+    c = P.mean(axis=0)
+    P = P - np.outer((P - c) @ up, up)  # onto the cover plane
+    drop = _drop(P, desk_plane)
+    mm = 0.001
+
+    def tone(Pc: NDArray[np.float64], s: int, near: float, far: float, cam: str) -> float:
+        # mean grey of the strip near..far outward of side s (metres, in the cover plane)
+        a, b = Pc[s], Pc[(s + 1) % 4]
+        n = _unit(np.cross(b - a, up))
+        if n @ (0.5 * (a + b) - Pc.mean(axis=0)) < 0:
+            n = -n
+        t = np.linspace(0.15, 0.85, 16)[:, None, None]
+        o = np.linspace(near, far, 4)[None, :, None]
+        pts = (a + t * (b - a) + o * n).reshape(-1, 3)
+        q = np.rint(geometry.project(Q[cam], pts)).astype(np.intp)
+        h, w = gray[cam].shape
+        q = q[(q[:, 0] >= 0) & (q[:, 0] < w) & (q[:, 1] >= 0) & (q[:, 1] < h)]
+        return float(gray[cam][q[:, 1], q[:, 0]].mean()) if len(q) else np.nan
+
+    def alike(u: float, v: float) -> bool:
+        return bool(abs(u - v) <= max(cfg.frame_tone * max(u, v), 4.0))
+
+    # the cover's tone inside the line: next to it, or beyond it where the quad lies on the
+    # line's outer edge (a line up to 2.5 mm wide)
+    inside = {(cam, s): (tone(P, s, -4 * mm, -1.5 * mm, cam), tone(P, s, -7 * mm, -4.5 * mm, cam))
+              for cam in Q for s in range(4)}
+    d = np.arange(cfg.frame_min, cfg.frame_max + 1e-9, cfg.step)
+    moves = []
+    for s in range(4):
+        grown = _moved(P, s, d)
+        is_edge, strength = _side_scores(grown, s, (s + 1) % 4, Q, grads, min_strength, cfg)
+        for k in np.flatnonzero(is_edge):  # the nearest edge that ends the margin
+            margin = {cam: tone(grown[k], s, -2.5 * mm, -1 * mm, cam) for cam in Q}
+            if all(any(alike(margin[cam], t) for t in inside[cam, s])
+                   and not alike(tone(grown[k], s, 1 * mm, 3.5 * mm, cam), margin[cam])
+                   for cam in Q):
+                break
+        else:
+            return None
+        # the tones change over the blurred edge's width: the edge is where it is strongest,
+        # within 3 mm on (while it stays an edge)
+        end = k
+        while end + 1 < len(d) and is_edge[end + 1] and d[end + 1] <= d[k] + 3 * mm:
+            end += 1
+        moves.append(_peak(d, strength, k, end, cfg.step))
+    if max(moves) - min(moves) > cfg.frame_agree:
+        return None
+    for s, m in enumerate(moves):
+        P = _moved(P, s, np.array([m]))[0]
+    if cfg.height_check and any(_on_desk(P, s, Q, grads, up, drop, cfg) for s in range(4)):
+        return None
+    return P
+
+
 def fit_pair_extent(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],
                     grads: dict[str, Gradients], min_strength: dict[str, float],
                     desk_plane: NDArray[np.float64], cfg: ExtentConfig = ExtentConfig(),
+                    gray: dict[str, NDArray[np.uint8]] | None = None,
                     ) -> dict[str, NDArray[np.float64]] | None:
     """:func:`fit_extent` for a stereo pair of ideal-pixel corners (4, 2) per camera: the
     new corners projected into both images (None if no side moved). They are not refit in
@@ -141,6 +228,9 @@ def fit_pair_extent(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArra
     if not np.all(np.isfinite(P)):
         return None
     G = fit_extent(P, Q, grads, min_strength, desk_plane, cfg)
+    if cfg.frame and gray is not None:  # a printed frame taken for the cover, grown on
+        F = grow_frame(P if G is None else G, Q, grads, gray, min_strength, desk_plane, cfg)
+        G = G if F is None else F
     if G is None:
         return None
     return {cam: geometry.project(Q[cam], G) for cam in ("left", "right")}
@@ -235,12 +325,19 @@ def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]]
     first = last
     while first > 0 and ok[first - 1]:
         first -= 1
+    return _peak(d, strength, first, last, cfg.step)
+
+
+def _peak(d: NDArray[np.float64], strength: NDArray[np.float64], first: int, last: int,
+          step: float) -> float:
+    """The offset of ``d`` (metres) where ``strength`` peaks within ``first..last``; a
+    parabola through the peak and its scored neighbours gives the sub-step offset."""
     k = first + int(np.argmax(strength[first:last + 1]))
-    if first < k < last:  # parabola through scored neighbours: sub-step offset
+    if first < k < last:
         s0, s1, s2 = strength[k - 1:k + 2]
         denom = s0 - 2 * s1 + s2
         if denom < 0:
-            return float(d[k] + cfg.step * np.clip(0.5 * (s0 - s2) / denom, -0.5, 0.5))
+            return float(d[k] + step * np.clip(0.5 * (s0 - s2) / denom, -0.5, 0.5))
     return float(d[k])
 
 

@@ -463,7 +463,7 @@ class Detector:
             lap("side_height")
         if (self.cfg.extent.grow or self.cfg.extent.shrink) and desk_plane is not None:
             earlier = [pair.left for pair, _ in found]
-            found = self._fit_extents(rig, segs, grads, found, desk_plane, texture)
+            found = self._fit_extents(rig, segs, grads, found, desk_plane, texture, ideal)
             lap("extent")
             if self.cfg.stereo.pool and self.cfg.stereo.pool_again and any(
                     max((_shared(q, pair.left) for pair, _ in found), default=0.0) < 0.75
@@ -472,7 +472,8 @@ class Detector:
                 # pair that was two books, cut back to one): the candidates looked at again
                 more = self._from_pool(rig, segs, grads, found, desk_plane, texture, refined)
                 if more:
-                    found += self._fit_extents(rig, segs, grads, more, desk_plane, texture)
+                    found += self._fit_extents(rig, segs, grads, more, desk_plane, texture,
+                                               ideal)
                 lap("stereo")
         # beyond the paper: two touching books taken for one cover, split at their seam
         # (after the extent step, which would grow each part over the other again)
@@ -1555,6 +1556,7 @@ class Detector:
                      grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
                      desk_plane: NDArray[np.float64],
                      texture: dict[str, NDArray[np.float32]] | None = None,
+                     ideal: dict[str, NDArray[np.uint8]] | None = None,
                      ) -> list[tuple[Pair, BookDetection]]:
         """Books whose cover stops at a printed line or reaches beyond its end, with their
         sides moved to the cover's edges (:mod:`rovis.extent`; the moved cover must pass the
@@ -1576,7 +1578,7 @@ class Detector:
                     if fitted is not None:
                         pair, book = trial, fitted
             new = fit_pair_extent({"left": pair.left, "right": pair.right}, Q, grads, strength,
-                                  desk_plane, self.cfg.extent)
+                                  desk_plane, self.cfg.extent, gray=ideal)
             if new is not None:
                 bigger = _in_eq1_order(replace(pair, left=new["left"], right=new["right"]))
                 bigger, fitted, _ = self._reconstruct_or_why(rig, bigger, desk_plane, texture)
