@@ -39,6 +39,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("a side on its foot, lifted", ["lift_foot=false"]),
     ("the height from the sides", ["side_height.enabled=false"]),
     ("the extent step", ["extent.grow=false", "extent.shrink=false"]),
+    ("a printed frame grown to the cover's edges", ["extent.frame=false"]),
     ("the split of touching books", ["split.enabled=false"]),
     ("the join of a cover's halves", ["split.join=false"]),
     ("the trim by the height map", ["trim.enabled=false"]),
