@@ -166,43 +166,58 @@ def grow_frame(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     drop = _drop(P, desk_plane)
     mm = 0.001
 
-    def tone(Pc: NDArray[np.float64], s: int, near: float, far: float, cam: str) -> float:
-        # mean grey of the strip near..far outward of side s (metres, in the cover plane)
-        a, b = Pc[s], Pc[(s + 1) % 4]
+    half = 0.5 * mm  # the tone profiles' sampling across the side
+    u = np.arange(-7 * mm, cfg.frame_max + 3.5 * mm + 1e-9, half)
+
+    def profile(s: int, cam: str) -> NDArray[np.float64]:
+        # mean grey along side s at each offset u across it (outward, in the cover plane),
+        # the middle 70 % of the side: every strip's tone read from one gather
+        a, b = P[s], P[(s + 1) % 4]
         n = _unit(np.cross(b - a, up))
-        if n @ (0.5 * (a + b) - Pc.mean(axis=0)) < 0:
+        if n @ (0.5 * (a + b) - c) < 0:
             n = -n
         t = np.linspace(0.15, 0.85, 16)[:, None, None]
-        o = np.linspace(near, far, 4)[None, :, None]
-        pts = (a + t * (b - a) + o * n).reshape(-1, 3)
-        q = np.rint(geometry.project(Q[cam], pts)).astype(np.intp)
+        pts = (a + t * (b - a) + u[None, :, None] * n).reshape(-1, 3)
+        q = np.rint(geometry.project(Q[cam], pts)).astype(np.intp).reshape(16, len(u), 2)
         h, w = gray[cam].shape
-        q = q[(q[:, 0] >= 0) & (q[:, 0] < w) & (q[:, 1] >= 0) & (q[:, 1] < h)]
-        return float(gray[cam][q[:, 1], q[:, 0]].mean()) if len(q) else np.nan
+        ok = (q[..., 0] >= 0) & (q[..., 0] < w) & (q[..., 1] >= 0) & (q[..., 1] < h)
+        g = gray[cam][np.clip(q[..., 1], 0, h - 1), np.clip(q[..., 0], 0, w - 1)]
+        with np.errstate(invalid="ignore"):
+            return (g * ok).sum(axis=0) / ok.sum(axis=0)
 
-    def alike(u: float, v: float) -> bool:
-        return bool(abs(u - v) <= max(cfg.frame_tone * max(u, v), 4.0))
+    def strip(prof: NDArray[np.float64], near: NDArray[np.float64] | float,
+              far: NDArray[np.float64] | float) -> NDArray[np.float64]:
+        # mean of the profile between offsets near and far (metres; arrays: one per move)
+        near, far = np.atleast_1d(near), np.atleast_1d(far)
+        inner = (u[None] >= near[:, None] - 1e-9) & (u[None] <= far[:, None] + 1e-9)
+        return (prof[None] * inner).sum(axis=1) / inner.sum(axis=1)
 
-    # the cover's tone inside the line: next to it, or beyond it where the quad lies on the
-    # line's outer edge (a line up to 2.5 mm wide)
-    inside = {(cam, s): (tone(P, s, -4 * mm, -1.5 * mm, cam), tone(P, s, -7 * mm, -4.5 * mm, cam))
-              for cam in Q for s in range(4)}
+    def alike(x: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.bool_]:
+        return np.abs(x - y) <= np.maximum(cfg.frame_tone * np.maximum(x, y), 4.0)
+
     d = np.arange(cfg.frame_min, cfg.frame_max + 1e-9, cfg.step)
     moves = []
     for s in range(4):
-        grown = _moved(P, s, d)
-        is_edge, strength = _side_scores(grown, s, (s + 1) % 4, Q, grads, min_strength, cfg)
-        for k in np.flatnonzero(is_edge):  # the nearest edge that ends the margin
-            margin = {cam: tone(grown[k], s, -2.5 * mm, -1 * mm, cam) for cam in Q}
-            if all(any(alike(margin[cam], t) for t in inside[cam, s])
-                   and not alike(tone(grown[k], s, 1 * mm, 3.5 * mm, cam), margin[cam])
-                   for cam in Q):
-                break
-        else:
+        # the nearest move whose inner strip has the cover's tone inside the side (next to
+        # it, or beyond a line up to 2.5 mm wide whose outer edge the quad lies on) and
+        # whose outer strip does not, in both images
+        fits = np.ones(len(d), bool)
+        for cam in Q:
+            prof = profile(s, cam)
+            margin = strip(prof, d - 2.5 * mm, d - 1 * mm)
+            fits &= ((alike(margin, strip(prof, -4 * mm, -1.5 * mm))
+                      | alike(margin, strip(prof, -7 * mm, -4.5 * mm)))
+                     & ~alike(strip(prof, d + 1 * mm, d + 3.5 * mm), margin))
+        if not fits.any():
+            return None  # (the common case: a cover's own edge, the desk beyond)
+        is_edge, strength = _side_scores(_moved(P, s, d), s, (s + 1) % 4, Q, grads,
+                                         min_strength, cfg)
+        hit = np.flatnonzero(fits & is_edge)
+        if len(hit) == 0:
             return None
         # the tones change over the blurred edge's width: the edge is where it is strongest,
         # within 3 mm on (while it stays an edge)
-        end = k
+        k = end = int(hit[0])
         while end + 1 < len(d) and is_edge[end + 1] and d[end + 1] <= d[k] + 3 * mm:
             end += 1
         moves.append(_peak(d, strength, k, end, cfg.step))
