@@ -251,3 +251,21 @@ def test_a_union_cut_back_by_the_extent_step_frees_the_other_book():
     again, once = within_1cm([]), within_1cm(["stereo.pool_again=false"])
     assert once < again  # the same books and more
     assert len(again) == len(truth)
+
+
+def test_a_late_pair_that_fits_no_rectangle_is_refused(book, monkeypatch):
+    # the right quad's near corners 6 px off their epipolar lines, kept there (refinement
+    # off): no rectangle projects onto both quads, 1.5 px of mean reprojection error
+    import rovis.pipeline as pipeline
+    P, grads, rig = book
+    quads = {cam: geometry.project(Q, P) for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
+    skewed = quads["right"].copy()
+    skewed[np.argsort(skewed[:, 1])[2:], 1] += 6.0  # the two lowest corners in the image
+    segs = {"left": replace(Segmentation.empty(100.0, 30), late_pool=_pool([quads["left"]])),
+            "right": replace(Segmentation.empty(100.0, 30), late_pool=_pool([skewed]))}
+    monkeypatch.setattr(pipeline, "refine_quad_both", lambda grad, q, **kw: (q, q))
+    assert Detector(rig, DetectConfig())._from_pool(rig, segs, grads, [], DESK, None,
+                                                    late=True) == []
+    loose = with_settings(DetectConfig(), ["stereo.late_max_reprojection_px=3"])
+    kept = Detector(rig, loose)._from_pool(rig, segs, grads, [], DESK, None, late=True)
+    assert len(kept) == 1 and 1.0 < kept[0][1].reprojection_error_px <= 3.0

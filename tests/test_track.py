@@ -141,8 +141,8 @@ def test_detect_track_follows_between_detections(still, tmp_path, capsys):
     # frame 3's search starts from frame 0's optimum and evaluates fewer T_H, so it may
     # offer stereo fewer candidates (Segmentation.late_pool): it finds no book frame 0 did
     # not, and every one frame 0 found other than among the candidates
-    near = lambda o, f: min(np.abs(np.subtract(o["center"], p["center"])).max()
-                            for p in f["objects"]) < 0.005  # metres
+    near = lambda o, f: min((np.abs(np.subtract(o["center"], p["center"])).max()
+                             for p in f["objects"]), default=np.inf) < 0.005  # metres
     assert all(near(o, frames[0]) for o in frames[3]["objects"])
     assert all(near(o, frames[3]) for o in frames[0]["objects"] if o["source"] != "candidates")
     assert "2 frames tracked" in capsys.readouterr().out

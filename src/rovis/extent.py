@@ -33,6 +33,10 @@ such an edge). And a side that stereo puts at the cover's height is the cover's 
 print on it, not the desk a quad over-reached onto, so it is not pulled in. Where stereo
 cannot tell (a side along the epipolar lines, a fit that fails), the moves stand.
 
+:func:`grow_frame` grows a cover found as the frame printed inside its edges, where no
+side's neighbours continue: each side moves out to the edge beyond a margin of the
+cover's tone.
+
 :func:`complete_open` places the sides of a cover candidate that no image saw (a three-,
 two- or opposite-sided candidate of the segmentation) the same way: its seen sides give
 the cover's height and orientation, and each unseen side goes where both images show a
@@ -169,9 +173,10 @@ def grow_frame(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     half = 0.5 * mm  # the tone profiles' sampling across the side
     u = np.arange(-7 * mm, cfg.frame_max + 3.5 * mm + 1e-9, half)
 
-    def profile(s: int, cam: str) -> NDArray[np.float64]:
-        # mean grey along side s at each offset u across it (outward, in the cover plane),
-        # the middle 70 % of the side: every strip's tone read from one gather
+    def profile(s: int, cam: str) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        # grey summed along side s at each offset u across it (outward, in the cover
+        # plane), the middle 70 % of the side, and the samples in view: every strip's tone
+        # read from one gather
         a, b = P[s], P[(s + 1) % 4]
         n = _unit(np.cross(b - a, up))
         if n @ (0.5 * (a + b) - c) < 0:
@@ -181,16 +186,22 @@ def grow_frame(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
         q = np.rint(geometry.project(Q[cam], pts)).astype(np.intp).reshape(16, len(u), 2)
         h, w = gray[cam].shape
         ok = (q[..., 0] >= 0) & (q[..., 0] < w) & (q[..., 1] >= 0) & (q[..., 1] < h)
-        g = gray[cam][np.clip(q[..., 1], 0, h - 1), np.clip(q[..., 0], 0, w - 1)]
-        with np.errstate(invalid="ignore"):
-            return (g * ok).sum(axis=0) / ok.sum(axis=0)
+        y, x = np.clip(q[..., 1], 0, h - 1), np.clip(q[..., 0], 0, w - 1)
+        seen = grads[cam].seen
+        if seen is not None:  # beyond the raw field of view the ideal image is black
+            ok &= seen[y, x] > 0
+        return (gray[cam][y, x] * ok).sum(axis=0), ok.sum(axis=0)
 
-    def strip(prof: NDArray[np.float64], near: NDArray[np.float64] | float,
+    def strip(prof: tuple[NDArray[np.float64], NDArray[np.int64]],
+              near: NDArray[np.float64] | float,
               far: NDArray[np.float64] | float) -> NDArray[np.float64]:
-        # mean of the profile between offsets near and far (metres; arrays: one per move)
+        # mean grey between offsets near and far (metres; arrays: one per move), NaN where
+        # no sample of it lies in view
         near, far = np.atleast_1d(near), np.atleast_1d(far)
         inner = (u[None] >= near[:, None] - 1e-9) & (u[None] <= far[:, None] + 1e-9)
-        return (prof[None] * inner).sum(axis=1) / inner.sum(axis=1)
+        total, count = (inner @ v for v in prof)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(count > 0, total / np.maximum(count, 1), np.nan)
 
     def alike(x: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.bool_]:
         return np.abs(x - y) <= np.maximum(cfg.frame_tone * np.maximum(x, y), 4.0)
@@ -205,9 +216,10 @@ def grow_frame(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
         for cam in Q:
             prof = profile(s, cam)
             margin = strip(prof, d - 2.5 * mm, d - 1 * mm)
+            outer = strip(prof, d + 1 * mm, d + 3.5 * mm)
             fits &= ((alike(margin, strip(prof, -4 * mm, -1.5 * mm))
                       | alike(margin, strip(prof, -7 * mm, -4.5 * mm)))
-                     & ~alike(strip(prof, d + 1 * mm, d + 3.5 * mm), margin))
+                     & np.isfinite(outer) & ~alike(outer, margin))  # (NaN: alike nothing)
         if not fits.any():
             return None  # (the common case: a cover's own edge, the desk beyond)
         is_edge, strength = _side_scores(_moved(P, s, d), s, (s + 1) % 4, Q, grads,
@@ -218,7 +230,8 @@ def grow_frame(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
         # the tones change over the blurred edge's width: the edge is where it is strongest,
         # within 3 mm on (while it stays an edge)
         k = end = int(hit[0])
-        while end + 1 < len(d) and is_edge[end + 1] and d[end + 1] <= d[k] + 3 * mm:
+        reach = int(round(3 * mm / cfg.step))
+        while end + 1 < len(d) and is_edge[end + 1] and end + 1 - k <= reach:
             end += 1
         moves.append(_peak(d, strength, k, end, cfg.step))
     if max(moves) - min(moves) > cfg.frame_agree:
@@ -235,8 +248,9 @@ def fit_pair_extent(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArra
                     desk_plane: NDArray[np.float64], cfg: ExtentConfig = ExtentConfig(),
                     gray: dict[str, NDArray[np.uint8]] | None = None,
                     ) -> dict[str, NDArray[np.float64]] | None:
-    """:func:`fit_extent` for a stereo pair of ideal-pixel corners (4, 2) per camera: the
-    new corners projected into both images (None if no side moved). They are not refit in
+    """:func:`fit_extent` for a stereo pair of ideal-pixel corners (4, 2) per camera, then
+    with ``gray`` (both ideal images) and ``cfg.frame`` :func:`grow_frame` from where it
+    left them: the new corners projected into both images (None if no side moved). They are not refit in
     each image alone: a page-block or neighbouring edge a pixel or two away would pull the
     two images apart and tilt the cover by degrees."""
     P = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])

@@ -69,7 +69,7 @@ from rovis.undistort import IdealView
 DROP_REASONS = ("degenerate", "too long", "too small", "tilted", "height", "side on desk",
                 "texture height", "skewed", "printed")
 # A frame's pool candidates refined (Detector._from_pool): (camera, index into the pool
-# and open pool concatenated) → corners with and without the inward search, (4, 2) each.
+# and open pool concatenated, the late pool after them in the late pass) → corners with and without the inward search, (4, 2) each.
 Refined = dict[tuple[str, int], tuple[NDArray[np.float64], NDArray[np.float64]]]
 # The checks after which a pair is retried with the other quads the closed loop found over
 # it (Segmentation.alternatives): those an outline paired with a cover fails.
@@ -437,7 +437,7 @@ class Detector:
         if self.cfg.stereo.pool and desk_plane is not None and any(
                 len(seg.late_pool) for seg in segs.values()):
             # beyond the paper: the candidates with sides unseen of the closed loop's other
-            # T_H (Segmentation.late_pool), after every other source
+            # T_H (Segmentation.late_pool), after the height maps, before the one-image search
             found += self._from_pool(rig, segs, grads, found, desk_plane, texture, refined,
                                      late=True)
             lap("stereo")

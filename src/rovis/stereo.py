@@ -89,10 +89,12 @@ class StereoConfig:
     # after it (a pool pair that was two touching books, cut back to one), the pool is
     # looked at again: the other book's pair had given way to the union
     pool_again: bool = True
-    # Last, a pair with a quad among the other T_H's candidates (Segmentation.late_pool):
+    # After the height maps, a pair with a quad among the other T_H's candidates
+    # (Segmentation.late_pool):
     # the rectangle fitted to both images' corners must reproject within this mean
     # distance (px; a pair whose near side is the cover's edge in one image and its page
-    # block's foot in the other makes a flat cover at the wrong height, 3 px off)
+    # block's foot in the other makes a flat cover at the wrong height, 3 px off; a pair
+    # completed in 3D or moved by its print is its 3D cover's projection, 0 px off)
     late_max_reprojection_px: float = 1.0
 
 

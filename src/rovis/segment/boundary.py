@@ -105,8 +105,8 @@ class SegmentConfig:
         their edges end (:func:`rovis.segment.quads.opposite_sided_quads`).
     late_open : bool
         Beyond the paper: with ``three_sided``, the candidates with sides unseen at every
-        other T_H the closed loop evaluated too, for stereo to pair only after every other
-        source (:attr:`Segmentation.late_pool`). A faint cover shows its sides at a low T_H
+        other T_H with a cover (y > 0) the closed loop evaluated too, for stereo to pair
+        after the height maps, before the one-image search (:attr:`Segmentation.late_pool`). A faint cover shows its sides at a low T_H
         whose y ranks low: the desk's texture outvotes its short sides there.
     """
 
@@ -200,7 +200,7 @@ class Segmentation:
     late_pool : Quads
         Beyond the paper: as :attr:`open_pool`, from the closed loop's other evaluations
         (``SegmentConfig.late_open``), less those near :attr:`pool` or :attr:`open_pool`;
-        stereo pairs them last.
+        stereo pairs them after the height maps, before the one-image search.
     three_sided : ndarray, shape (K,), bool
         Per cover, whether it is one of the three-sided candidates, kept as a cover
         (``SegmentConfig.three_sided_support``): its fourth side unseen; its ``support``

@@ -7,7 +7,7 @@ frame's optimum and only climbs locally, falling back to the full search when th
 changed so much that the local optimum is empty. Beyond the paper, the covers other
 evaluated T_H found where the optimum found none are kept too (:func:`with_other_covers`),
 and so are the clearest covers with one side unseen (:func:`with_three_sided_covers`); the
-candidates with sides unseen of the remaining T_H go to stereo last
+candidates with sides unseen of the remaining T_H go to stereo late
 (:func:`late_candidates`).
 """
 
