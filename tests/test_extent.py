@@ -608,3 +608,16 @@ def test_a_cover_found_whole_is_no_frame(framed_book):
     strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
     assert extent.grow_frame(P, Q, grads, gray, {"left": strength, "right": strength},
                              desk) is None
+
+
+
+
+def test_the_four_moves_must_agree(framed_book):
+    # the frame's four moves to the cover's edges differ by a millimetre or two (the
+    # blurred edges' peaks): an agreement tighter than that refuses the grow
+    P, Q, grads, gray, desk = framed_book
+    frame = _inset(P, FRAME_MARGIN + 0.5 * FRAME_LINE)
+    strength = {cam: CANNY_LOW_RATIO * SegmentConfig().open_T_H for cam in Q}
+    assert extent.grow_frame(frame, Q, grads, gray, strength, desk) is not None
+    tight = replace(ExtentConfig(), frame_agree=0.0002)
+    assert extent.grow_frame(frame, Q, grads, gray, strength, desk, tight) is None
