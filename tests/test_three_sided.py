@@ -9,7 +9,7 @@ import numpy as np
 
 from rovis.segment import CascadeController, SegmentConfig, canny, gradients, hough_lines
 from rovis.segment.boundary import evaluate, open_candidates, roi_area
-from rovis.segment.control import late_candidates
+from rovis.segment.control import unseen_candidates
 from rovis.segment.lines import support_profile
 from rovis.segment.quads import (Quads, _canonical, candidate_quads, order_corners,
                                  three_sided_quads)
@@ -317,7 +317,8 @@ def test_the_other_evaluations_offer_theirs_late_and_once(monkeypatch):
     asked, evaluated = [], {}
     real_open, real_eval = control.open_candidates, control.evaluate
     monkeypatch.setattr(control, "open_candidates",
-                        lambda grad, ev, *a, **k: asked.append(ev.T_H) or real_open(grad, ev, *a, **k))
+                        lambda grad, ev, *a, **k: asked.append(ev.T_H)
+                        or real_open(grad, ev, *a, **k))
 
     def evaluate(grad, T_H, cfg, **kw):
         ev = real_eval(grad, T_H, cfg, **kw)
@@ -338,7 +339,7 @@ def test_the_other_evaluations_offer_theirs_late_and_once(monkeypatch):
     np.testing.assert_allclose(off.open_pool.corners, seg.open_pool.corners)
 
 
-def test_the_late_candidates_are_those_no_earlier_pool_holds():
+def test_the_unseen_candidates_are_those_no_earlier_pool_holds():
     # a faint cover (8 grey levels over the desk) shows its three sides at a low T_H only
     img = far_side_hidden(noise=1.0).astype(np.int16)
     img = np.where(img > 140, 108, 100).astype(np.uint8)  # the band and the cover, faint
@@ -346,9 +347,9 @@ def test_the_late_candidates_are_those_no_earlier_pool_holds():
     cfg = SegmentConfig()
     low, high = evaluate(grad, 20.0, cfg), evaluate(grad, 120.0, cfg)
     assert _worst_corner_px(open_candidates(grad, high, cfg).corners) > 10.0  # unseen there
-    late = late_candidates(grad, [low], Quads.empty(), cfg, area=roi_area(grad))
+    late = unseen_candidates(grad, [low], Quads.empty(), cfg, area=roi_area(grad))
     assert _worst_corner_px(late.corners) < 3.0  # px
     near = open_candidates(grad, low, cfg)  # offered earlier: not again
-    again = late_candidates(grad, [low], near, cfg, area=roi_area(grad))
+    again = unseen_candidates(grad, [low], near, cfg, area=roi_area(grad))
     assert _worst_corner_px(again.corners) > 10.0
-    assert len(late_candidates(grad, [], Quads.empty(), cfg, area=roi_area(grad))) == 0
+    assert len(unseen_candidates(grad, [], Quads.empty(), cfg, area=roi_area(grad))) == 0

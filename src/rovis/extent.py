@@ -73,10 +73,10 @@ class ExtentConfig:
     gap_edge_ratio: float = 0.35  # of a side's median edge strength: where its edge is missing
     height_check: bool = True  # stereo height of a moved side's edge: see _on_desk, _at_cover_height
     height_sigma: float = 0.5  # ...asked where stereo places the edge this well, of the cover's height
-    # A cover found as the frame printed inside it (grow_frame): its four sides thin lines
-    # with the cover's tone on both sides, each moved out to the next edge, found within
-    # frame_min-frame_max where the margin has the tone inside the frame and what lies
-    # beyond differs by more than frame_tone (of the brighter, or 4 grey levels)
+    # A cover found as the frame printed inside it (grow_frame): each side moved out to
+    # the nearest edge within frame_min-frame_max where the margin has the cover's tone
+    # inside the side and what lies beyond differs by more than frame_tone (of the
+    # brighter, or 4 grey levels)
     frame: bool = True
     frame_min: float = 0.003  # (a line's own other edge, blurred, is nearer)
     frame_max: float = 0.02
@@ -250,9 +250,9 @@ def fit_pair_extent(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArra
                     ) -> dict[str, NDArray[np.float64]] | None:
     """:func:`fit_extent` for a stereo pair of ideal-pixel corners (4, 2) per camera, then
     with ``gray`` (both ideal images) and ``cfg.frame`` :func:`grow_frame` from where it
-    left them: the new corners projected into both images (None if no side moved). They are not refit in
-    each image alone: a page-block or neighbouring edge a pixel or two away would pull the
-    two images apart and tilt the cover by degrees."""
+    left them: the new corners projected into both images (None if no side moved). They
+    are not refit in each image alone: a page-block or neighbouring edge a pixel or two
+    away would pull the two images apart and tilt the cover by degrees."""
     P = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
     if not np.all(np.isfinite(P)):
         return None

@@ -106,8 +106,9 @@ class SegmentConfig:
     late_open : bool
         Beyond the paper: with ``three_sided``, the candidates with sides unseen at every
         other T_H with a cover (y > 0) the closed loop evaluated too, for stereo to pair
-        after the height maps, before the one-image search (:attr:`Segmentation.late_pool`). A faint cover shows its sides at a low T_H
-        whose y ranks low: the desk's texture outvotes its short sides there.
+        after the height maps, before the one-image search (:attr:`Segmentation.late_pool`).
+        A faint cover shows its sides at a low T_H whose y ranks low: the desk's texture
+        outvotes its short sides there.
     """
 
     n_max: int = 100

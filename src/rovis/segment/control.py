@@ -8,7 +8,7 @@ changed so much that the local optimum is empty. Beyond the paper, the covers ot
 evaluated T_H found where the optimum found none are kept too (:func:`with_other_covers`),
 and so are the clearest covers with one side unseen (:func:`with_three_sided_covers`); the
 candidates with sides unseen of the remaining T_H go to stereo late
-(:func:`late_candidates`).
+(:func:`unseen_candidates`).
 """
 
 from __future__ import annotations
@@ -120,8 +120,8 @@ class CascadeController:
             if self.cfg.late_open:
                 rest = [e for e in seen.values() if e.y > 0
                         and all(e.profile is not c.profile for c in chosen)]
-                late_pool = late_candidates(grad, rest, Quads.concat([full, open_pool]),
-                                            self.cfg, area=area, timing=timing)
+                late_pool = unseen_candidates(grad, rest, Quads.concat([full, open_pool]),
+                                              self.cfg, area=area, timing=timing)
         return finish(grad, best, iterations, timing=timing, alternatives=alternatives,
                       pool=full, refine=refine, open_pool=open_pool, late_pool=late_pool)
 
@@ -246,27 +246,21 @@ def with_open_candidates(grad: Gradients, best: Evaluation, alternatives: tuple[
     # (with_other_covers): the same lines and edge hits, asked once
     chosen = [e for k, e in enumerate(chosen)
               if all(e.profile is not c.profile for c in chosen[:k])]
-    open_pool = without_near(candidate_pool(
-        [open_candidates(grad, e, cfg, area=area, timing=timing) for e in chosen],
-        cfg.pool_size), full, cfg.quads.duplicate_px)
-    if cfg.three_sided_support <= 1.0:
+    open_pool = unseen_candidates(grad, chosen, full, cfg, area=area, timing=timing)
+    if cfg.three_sided_support <= 1.0:  # (a two-sided candidate has two sides unseen)
         best, alternatives = with_three_sided_covers(
             best, alternatives, open_pool, cfg.three_sided_support, cfg.quads.max_overlap)
-    if cfg.two_sided:
-        two = without_near(candidate_pool(
-            [two_sided_candidates(grad, e, cfg, area=area, timing=timing) for e in chosen],
-            cfg.two_sided_size), Quads.concat([full, open_pool]), cfg.quads.duplicate_px)
-        open_pool = Quads.concat([open_pool, two])
     return best, alternatives, open_pool
 
 
-def late_candidates(grad: Gradients, evaluations: Sequence[Evaluation], near: Quads,
-                    cfg: SegmentConfig, *, area: float,
-                    timing: dict[str, float] | None = None) -> Quads:
+def unseen_candidates(grad: Gradients, evaluations: Sequence[Evaluation], near: Quads,
+                      cfg: SegmentConfig, *, area: float,
+                      timing: dict[str, float] | None = None) -> Quads:
     """The candidates with sides unseen (three-sided, then with ``cfg.two_sided`` two-sided)
-    of ``evaluations``, less those ``near`` holds: :attr:`Segmentation.late_pool` (beyond
-    the paper; ``cfg.late_open``). The closed loop asks it of the T_H with covers that
-    :func:`with_open_candidates` was not asked of."""
+    of ``evaluations``, less those ``near`` holds (beyond the paper):
+    :attr:`Segmentation.open_pool` of the evaluations :func:`with_open_candidates` is asked
+    of, and :attr:`Segmentation.late_pool` (``cfg.late_open``) of the closed loop's other
+    T_H with covers."""
     if not evaluations:
         return Quads.empty()
     late = without_near(candidate_pool(
