@@ -230,6 +230,30 @@ def test_only_the_pairs_closest_to_their_epipolar_segments_are_refined(book, mon
     assert len(refined) == 2  # the book's quads, one per image; the decoy's not
 
 
+def test_the_pairs_over_a_book_already_found_are_not_refined(book, monkeypatch):
+    # the same cover twice in each image's pool (one copy a pixel off): the pair with the
+    # most edge pixels is refined and gives the book; the other pairs lie over it and are
+    # passed over on their Hough quads, unrefined
+    import rovis.pipeline as pipeline
+    P, grads, rig = book
+    quads = {cam: geometry.project(Q, P) for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
+    segs = {cam: replace(Segmentation.empty(100.0, 30), pool=_pool([q, q + [1.0, 0.5]]))
+            for cam, q in quads.items()}
+    assert len(pool_pairs(segs["left"].pool.corners, segs["right"].pool.corners, rig.Q_L,
+                          rig.Q_R, desk_plane=DESK)) == 4
+    refined = []
+    refine = pipeline.refine_quad_both
+    monkeypatch.setattr(pipeline, "refine_quad_both",
+                        lambda grad, corners, **kw: refined.append(corners) or
+                        refine(grad, corners, **kw))
+    found = Detector(rig, DetectConfig())._from_pool(rig, segs, grads, [], DESK, None)
+    assert len(found) == 1
+    assert np.linalg.norm(found[0][1].pose.center - P.mean(axis=0)) < 0.005  # metres
+    assert len(refined) == 2  # the first copy in each image
+    for got, want in zip(refined, (quads["left"], quads["right"])):
+        np.testing.assert_allclose(got, order_corners(want))
+
+
 def test_a_union_cut_back_by_the_extent_step_frees_the_other_book():
     """The demo scene: the pool's first pick there spans two touching photo covers (its
     pair beat the smaller book's, which gave way to it); the extent step cuts it back to

@@ -914,21 +914,33 @@ class Detector:
                               for k, s in zip(j[index].tolist(), pp.shift[index].tolist())])
             return left.reshape(-1, 4, 2), right.reshape(-1, 4, 2)
 
-        every = np.arange(len(i))
-        left, right = refine_pairs(every, (True, True))
-        ok = flat(left, right)
-        # The refinement looks for a cover edge inside a side facing the camera (a page
-        # block below it); a printed line there can pull one image's side inward and tilt
-        # the cover. A pair that is no flat cover so is tried without that step, in one
-        # image, then in both.
-        for inward in ((False, True), (True, False), (False, False)):
-            retry = np.flatnonzero(~ok)
-            if len(retry) == 0:
-                break
-            l2, r2 = refine_pairs(retry, inward)
-            good = flat(l2, r2)
-            left[retry[good]], right[retry[good]] = l2[good], r2[good]
-            ok[retry[good]] = True
+        # Each pair is refined when its turn comes, not all up front: most pairs lie over a
+        # book an earlier pair gave, and are passed over on their Hough quads alone.
+        left, right = np.zeros((len(i), 4, 2)), np.zeros((len(i), 4, 2))
+        ok, settled = np.zeros(len(i), bool), np.zeros(len(i), bool)
+        as_refined = np.zeros((len(i), 4, 2))  # the left quads as refined (what a union is of)
+
+        def settle(index: NDArray[np.intp]) -> None:
+            index = index[~settled[index]]
+            if len(index) == 0:
+                return
+            l1, r1 = refine_pairs(index, (True, True))
+            good = flat(l1, r1)
+            # The refinement looks for a cover edge inside a side facing the camera (a page
+            # block below it); a printed line there can pull one image's side inward and
+            # tilt the cover. A pair that is no flat cover so is tried without that step,
+            # in one image, then in both.
+            for inward in ((False, True), (True, False), (False, False)):
+                retry = np.flatnonzero(~good)
+                if len(retry) == 0:
+                    break
+                l2, r2 = refine_pairs(index[retry], inward)
+                better = flat(l2, r2)
+                l1[retry[better]], r1[retry[better]] = l2[better], r2[better]
+                good[retry[better]] = True
+            left[index], right[index], ok[index], settled[index] = l1, r1, good, True
+            as_refined[index] = l1
+
         # A pair with sides unseen whose refined guesses still make no flat cover: its
         # unseen sides placed in 3D instead, from the seen ones (rovis.extent.complete_open)
         completed = np.zeros(len(i), bool)
@@ -973,28 +985,50 @@ class Detector:
             completed[a] = True
             return True
 
-        # the pairs that refined to a flat cover, the most edge pixels first; then those
+        # the pairs that refine to a flat cover, the most edge pixels first; then those
         # with sides unseen that did not, completed in 3D when their turn comes (most are
         # over a book found by then)
-        keep = np.flatnonzero(ok | np.array([completable(a) for a in range(len(i))], dtype=bool))
-        score = pool["left"].n_f[i[keep]] + pool["right"].n_f[j[keep]]
-        keep = keep[np.lexsort((-score, ~ok[keep]))]
-        flat_ones = keep[ok[keep]]  # (first in keep) what a union is made of
-        union_parts = left[flat_ones].copy()  # as refined: a completion below moves left[a]
-        area = np.array([cv2.contourArea(q.astype(np.float32)) for q in union_parts])
+        score = pool["left"].n_f[i] + pool["right"].n_f[j]
+        order = np.argsort(-score, kind="stable")
+        coarse = {"left": pool["left"].corners[i], "right": pool["right"].corners[j]}
+        coarse_area = np.array([cv2.contourArea(q.astype(np.float32)) for q in coarse["left"]])
         out: list[tuple[Pair, BookDetection]] = []
 
         def free(a: int) -> bool:
             return not (any(quad_overlap(left[a], t) > overlap for t in taken["left"])
                         or any(quad_overlap(right[a], t) > overlap for t in taken["right"]))
 
-        for rank, a in enumerate(keep.tolist()):
-            if not free(a):
-                continue
-            if ok[a] and _is_union(rank, union_parts, area, overlap):
-                continue
+        def over_found(a: int) -> bool:
+            # Hough quads over a book found by twice the share that makes a refined pair
+            # not free: refinement moves a corner by pixels, and on the development sets no
+            # pair whose Hough quads overlapped a found book by more than that share came
+            # out free once refined (skipping its refinement saves most of this step)
+            return any(quad_overlap(coarse[cam][a], t) > 2 * overlap
+                       for cam in ("left", "right") for t in taken[cam])
+
+        def union(a: int) -> bool:
+            # _is_union over the flat pairs whose left quads may lie inside this one (their
+            # Hough quads overlap it by half, and are smaller), each refined if not yet
+            inside = np.array([b for b in order.tolist() if b != a
+                               and coarse_area[b] < coarse_area[a]
+                               and quad_overlap(coarse["left"][b], as_refined[a]) > 0.5],
+                              dtype=np.intp)
+            # Of two parts 90 % inside it and overlapping by at most 30 % of the smaller,
+            # the smaller covers under 70 % of it (0.9 p1 + 0.6 p2 <= 1 with p2 <= p1): with
+            # no such quad (its Hough quad under 80 %), no union, and nothing to refine
+            a_area = cv2.contourArea(as_refined[a].astype(np.float32))
+            if not np.any(coarse_area[inside] < 0.8 * a_area):
+                return False
+            settle(inside)
+            parts = np.concatenate([[a], inside[ok[inside]]])
+            area = np.array([cv2.contourArea(q.astype(np.float32)) for q in as_refined[parts]])
+            return _is_union(0, as_refined[parts], area, overlap)
+
+        def consider(a: int) -> None:
+            if not free(a) or (ok[a] and union(a)):
+                return
             if not ok[a] and not (complete(a) and free(a)):
-                continue
+                return
             if not completed[a] and (two_open(pool["left"], i[a]) or two_open(pool["right"], j[a])):
                 # two sides guessed: each side must show a step in both images, and the
                 # corners lie at one height (a guessed corner is off in depth)
@@ -1005,7 +1039,7 @@ class Detector:
                 if (step < cfg.stereo.two_sided_evidence
                         or np.ptp(heights) > cfg.stereo.two_sided_flatness) and not (
                         complete(a) and free(a)):
-                    continue
+                    return
             quality = float(min(pool["left"].support[i[a]].mean(),
                                 pool["right"].support[j[a]].mean()))
             pair, book, _ = self._reconstruct_or_why(  # eq. 1 order, kept after refinement
@@ -1014,10 +1048,22 @@ class Detector:
                 desk_plane, texture)
             if book is None or (late and book.reprojection_error_px
                                 > cfg.stereo.late_max_reprojection_px):
-                continue
+                return
             taken["left"].append(pair.left)
             taken["right"].append(pair.right)
             out.append((pair, book))
+
+        deferred: list[int] = []
+        for a in order.tolist():  # the flat pairs, as their turn comes
+            if over_found(a):
+                continue
+            settle(np.array([a]))
+            if ok[a]:
+                consider(a)
+            elif completable(a):
+                deferred.append(a)
+        for a in deferred:  # then the pairs to complete in 3D, in the same order
+            consider(a)
         return out
 
     def _from_pool_one_image(self, rig: StereoRig, segs: dict[str, Segmentation],
