@@ -12,13 +12,14 @@ import numpy as np
 import pytest
 
 from rovis import geometry
+from rovis.extent import _block_shows, _drop
 from rovis.heightmap import HeightMap
 from rovis.pipeline import DetectConfig, Detector, Pair, with_settings
 from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
-from rovis.trim import (TrimConfig, cut_cover, grow_run, height_profile, map_height, print_grow,
-                        trim_side)
+from rovis.trim import (TrimConfig, _foot_offset, cut_cover, grow_run, height_profile,
+                        map_height, print_grow, trim_side)
 
 CFG = TrimConfig()
 H = 0.03  # metres, the cover's height in the profile tests
@@ -320,8 +321,64 @@ def test_print_grow_moves_a_side_to_the_edge_where_the_print_ends(book_scene):
     assert grow(short, (a + 3) % 4) == 0.0
     # farther out than print_reach: not looked for
     assert grow(short, a + 1, replace(CFG, print_reach=0.04)) == 0.0
-    # a move under print_min is left alone (the page block's foot lies that near)
-    assert grow(short, a + 1, replace(CFG, print_min=0.06)) == 0.0
+    # a move under print_min is left alone (the page block's foot may lie that near)...
+    assert grow(short, a + 1, replace(CFG, print_min=0.06, print_near=0.06)) == 0.0
+    # ...but this side's page block shows, its foot about 7 mm out: from print_near on it moves
+    assert grow(short, a + 1, replace(CFG, print_min=0.06)) == pytest.approx(0.05, abs=0.003)
+
+
+def test_print_grow_takes_an_edge_nearer_than_print_min_beyond_the_block_foot(book_scene):
+    # The cover's end whose page block the cameras see (its foot 6.6 mm out across the
+    # cover's plane), cut 14 mm short: under print_min, but beyond the block's face
+    sc, r = book_scene
+    det, res, f, texture, _ = _frame(sc, r)
+    truth = np.asarray(sc.books[0].corners)[:4]
+    a, _ = _long_axis(truth)
+    Q = {"left": f.rig.Q_L, "right": f.rig.Q_R}
+    short = _end_in(truth, 1, 0.014)  # side a + 1 14 mm in
+    drop = _drop(short, f.desk_plane)
+    assert _block_shows(short, a + 1, Q, drop)
+    assert 0.004 < _foot_offset(short, a + 1, Q, drop) < 0.009
+    strength = det._edge_strength(res.segmentation)
+
+    def grow(P, s, cfg=CFG):
+        return print_grow(P, s, 0.03, Q, f.grads, strength, texture, f.desk_plane,
+                          det.cfg.extent, cfg)
+
+    assert grow(short, a + 1) == pytest.approx(0.014, abs=0.003)
+    # an edge within the block's face and foot (a margin past 14 mm): left alone
+    assert grow(short, a + 1, replace(CFG, print_foot_margin=0.012)) == 0.0
+    # nor under print_near
+    assert grow(short, a + 1, replace(CFG, print_near=0.018)) == 0.0
+    # the cover's own end stays
+    assert grow(truth, a + 1) == 0.0
+
+
+def test_foot_offset_is_where_the_block_foot_shows_across_the_side():
+    # a camera 1 m above a cover 3 cm up, looking 45 degrees down at its side at x = 0:
+    # the foot of the block below that side shows about 3 cm out across the cover's
+    # plane; below a side facing away it does not show
+    K = np.array([[800.0, 0, 512], [0, 800.0, 384], [0, 0, 1]])
+    c = np.array([-1.0, 0.0, 1.03])  # 45 degrees down to the side's midpoint (0, 0, 0.03)
+    R = _look_at(c, np.array([0.0, 0.0, 0.03]))
+    Qc = K @ np.hstack([R, (-R @ c)[:, None]])
+    P = np.array([[0.0, -0.1, 0.03], [0.0, 0.1, 0.03], [0.15, 0.1, 0.03], [0.15, -0.1, 0.03]])
+    Q = {"left": Qc, "right": Qc}
+    drop = np.array([0.0, 0.0, -0.03])
+    # side 0 (corner 0 to 1) lies at x = 0, outward -x, facing the camera: the ray to its
+    # foot crosses the cover's height at x = -1 + 1/1.03 = -0.029; side 2 faces away
+    assert _foot_offset(P, 0, Q, drop) == pytest.approx(1 - 1 / 1.03, abs=1e-3)
+    assert _foot_offset(P, 2, Q, drop) == 0.0
+
+
+def _look_at(eye, target):
+    """World-to-camera rotation of a camera at ``eye`` looking at ``target`` (x right, y
+    down in the image, z forward), world z up."""
+    z = (target - eye) / np.linalg.norm(target - eye)
+    x = np.cross(z, [0.0, 0.0, 1.0])
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return np.array([x, y, z])
 
 
 def test_grow_run_ends_where_the_map_leaves_the_cover_height():
@@ -362,6 +419,10 @@ def test_bad_settings_are_refused():
         TrimConfig(grow_continuation=2.0)
     with pytest.raises(ValueError, match="bad print_reach"):
         TrimConfig(print_min=0.0)
+    with pytest.raises(ValueError, match="bad print_reach"):
+        TrimConfig(print_near=0.0)
+    with pytest.raises(ValueError, match="bad print_reach"):
+        TrimConfig(print_foot_margin=-0.001)
     with pytest.raises(ValueError, match="bad print_edges"):
         TrimConfig(print_edges=0)
     with pytest.raises(ValueError, match="bad print_continuation"):

@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rovis import geometry
-from rovis.extent import ExtentConfig, _hits, _moved, _side_scores, _unit
+from rovis.extent import ExtentConfig, _block_shows, _drop, _hits, _moved, _side_scores, _unit
 from rovis.heightmap import HeightMap
 from rovis.segment.edges import Gradients
 from rovis.sweep import Sweep, sweep_heights
@@ -73,10 +73,13 @@ class TrimConfig:
     The grow by print (``print_grow``, :func:`print_grow`), where the maps cannot tell (a
     thin book, a cover whose sides carry no edge beyond a band): a side moves out to an
     edge both images show, at least ``print_min`` and at most ``print_reach`` beyond it
-    (and the book no longer than the extent step's ``max_side``), where the strip between
-    lines up between the images at the cover's height (the sweep's best within the
+    (and the book no longer than the extent step's ``max_side``); where a page block
+    shows below the side, at least ``print_near`` and ``print_foot_margin`` beyond where
+    its foot would show (the nearer of those and ``print_min``). The strip between must
+    line up between the images at the cover's height (the sweep's best within the
     tolerance above, NCC at least ``print_min_ncc`` and ``print_margin`` above the
-    desk's; each ``print_piece`` of it best within the tolerance) and the strip
+    desk's; from ``print_min`` out, each ``print_piece`` of it best within the
+    tolerance) and the strip
     ``print_beyond`` wide past the edge does not (best more than half the tolerance
     off). The first ``print_piece`` beyond the side is looked at first: a side whose
     print there lines up at another height stays, unscanned. The first ``print_edges``
@@ -115,6 +118,8 @@ class TrimConfig:
     print_grow: bool = True
     print_reach: float = 0.09
     print_min: float = 0.02  # at 15 mm covers nearly right grew onto their block's foot
+    print_near: float = 0.008  # beyond the block's foot: measured in docs/stereo.md
+    print_foot_margin: float = 0.004
     print_min_ncc: float = 0.6
     print_margin: float = 0.05
     print_max_overlap: float = 0.1
@@ -138,6 +143,7 @@ class TrimConfig:
             ("grow_min_same", 0 <= self.grow_min_same <= 1
              and 0 <= self.grow_continuation <= 1),
             ("print_reach", self.print_reach > 0 and self.print_min > 0
+             and self.print_near > 0 and self.print_foot_margin >= 0
              and self.print_beyond > 0 and self.print_piece > 0),
             ("print_edges", self.print_edges >= 1),
             ("print_continuation", 0 <= self.print_continuation <= 1
@@ -148,8 +154,9 @@ class TrimConfig:
                              "positive, as are grow_reach and grow_min; span in (0, 1]; "
                              "min_other, min_height_share, min_height_agree, grow_min_same, "
                              "grow_continuation, print_continuation and print_max_overlap "
-                             "in [0, 1]; print_reach, print_min, print_beyond and "
-                             "print_piece positive, print_edges >= 1, print_min_ncc in "
+                             "in [0, 1]; print_reach, print_min, print_near, print_beyond "
+                             "and print_piece positive, print_foot_margin >= 0, "
+                             "print_edges >= 1, print_min_ncc in "
                              "[-1, 1], print_margin in [-2, 2]; min_samples from 1 to samples; "
                              "grow_margin of any sign; the "
                              f"rest >= 0), got {self}")
@@ -423,15 +430,20 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
        ``ext.max_side`` long; a run of offsets from the first one is the side's own edge,
        not looked at) are taken nearest first, at most ``cfg.print_edges`` of them, each
        at its strongest offset.
-    3. For an edge at least ``cfg.print_min`` out, the strip from the side to it must
-       sweep best within the tolerance, with an NCC of at least ``cfg.print_min_ncc`` and
-       ``cfg.print_margin`` above the NCC at the desk's height, and each
-       ``cfg.print_piece`` of it (that shows print) best within the tolerance; otherwise,
-       or with no print in it, the side stays. A nearer edge (its strip too narrow to
-       sweep) is judged by the strip beyond it alone.
+    3. An edge may be the cover's from ``cfg.print_min`` out; where a page block shows
+       below the side (:func:`rovis.extent._block_shows`), from ``cfg.print_near`` out
+       if that is ``cfg.print_foot_margin`` beyond where the block's foot would show in
+       either image (:func:`_foot_offset`; its face, the side's own, spans the image
+       from the side to there, and a side nearly right would grow onto its foot). For
+       such an edge, the strip from the side to it must sweep best within the
+       tolerance, with an NCC of at least ``cfg.print_min_ncc`` and
+       ``cfg.print_margin`` above the NCC at the desk's height, and from
+       ``cfg.print_min`` out each ``cfg.print_piece`` of it (that shows print) best
+       within the tolerance; otherwise, or with no print in it, the side stays. A nearer
+       edge is judged by the strip beyond it alone.
     4. Where the strip ``cfg.print_beyond`` wide beyond the edge sweeps best more than
        half the tolerance from ``height``, the edge is the cover's: the side moves there
-       if it is at least ``cfg.print_min`` out and one neighbouring side goes on as an
+       if it may be (3) and one neighbouring side goes on as an
        edge, in either image, along ``cfg.print_continuation`` of the way
        (:func:`_continued`); else it stays. Where that strip lines up at the cover's
        height, the edge was print, and the next is tried; where it shows no print,
@@ -442,7 +454,12 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
                                                    np.linalg.norm(P[b] - P[(b + 1) % 4])))
     gap = 0.002  # the edges themselves, left out of the strips
     d = np.arange(2 * gap, room + 1e-9, ext.step)
-    if room < cfg.print_min or len(d) == 0:
+    least = cfg.print_min  # the nearest edge that may be the cover's (step 3)
+    drop = _drop(P, desk_plane)
+    if _block_shows(P, s, Q, drop):
+        least = min(least, max(cfg.print_near, _foot_offset(P, s, Q, drop)
+                               + cfg.print_foot_margin))
+    if room < least or len(d) == 0:
         return 0.0
     moved = _moved(P, s, d)  # (D, 4, 3)
     tol = max(cfg.tolerance, cfg.tolerance_ratio * height)
@@ -470,12 +487,13 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
     peaks = [first + int(np.argmax(strength[first:last + 1]))  # each run's strongest
              for first, last in _runs(edge) if first > 0]  # (from 0: the side's own edge)
     for k in peaks[:cfg.print_edges]:
-        if d[k] >= cfg.print_min:
+        if d[k] >= least:
             inside = sweep(gap, d[k] - gap)
             if inside is None or not (abs(inside.best_height - height) <= tol
                                       and inside.best_ncc >= cfg.print_min_ncc
                                       and inside.best_ncc - inside.ncc[0] >= cfg.print_margin):
                 return 0.0  # no print to tell, or the strip is no cover: the side stays
+        if d[k] >= cfg.print_min:
             # ...and no part of it is another surface (a page block's face below the cover)
             cuts = np.linspace(gap, d[k] - gap,
                                int(np.ceil((d[k] - 2 * gap) / cfg.print_piece)) + 1)
@@ -487,11 +505,28 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
         if beyond is None:
             return 0.0
         if abs(beyond.best_height - height) > 0.5 * tol:
-            if d[k] < cfg.print_min or _continued(P, moved[:k + 1], s, Q, grads, min_strength,
+            if d[k] < least or _continued(P, moved[:k + 1], s, Q, grads, min_strength,
                                                    ext) < cfg.print_continuation:
                 return 0.0
             return float(d[k])
     return 0.0
+
+
+def _foot_offset(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
+                 drop: NDArray[np.float64]) -> float:
+    """How far beyond side ``s`` of cover ``P`` (4, 3), along the cover's plane, the foot
+    of the page block below it shows (metres; the farther of the two images, 0 at least):
+    where the image of the side's midpoint moved by ``drop`` (onto the desk) lies, across
+    the side, in steps of the side moved outward."""
+    a, b = s, (s + 1) % 4
+    out = _unit(P[a] - P[(a - 1) % 4])  # outward across side s, as _moved moves it
+    mid = 0.5 * (P[a] + P[b])
+    far = 0.0
+    for cam in ("left", "right"):
+        q = geometry.project(Q[cam], np.array([mid, mid + 0.01 * out, mid + drop]))
+        step = q[1] - q[0]  # the image of 1 cm outward
+        far = max(far, 0.01 * float((q[2] - q[0]) @ step) / max(float(step @ step), 1e-12))
+    return far
 
 
 def _runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
