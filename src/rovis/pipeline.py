@@ -1000,24 +1000,25 @@ class Detector:
 
         def over_found(a: int) -> bool:
             # Hough quads over a book found by twice the share that makes a refined pair
-            # not free: refinement moves a corner by pixels, and on the development sets no
-            # pair whose Hough quads overlapped a found book by more than that share came
-            # out free once refined (skipping its refinement saves most of this step)
+            # not free. Refinement may move a side by up to a page-block strip (25 px), so
+            # this is a measured rule, not a bound: on the development sets no pair whose
+            # Hough quads overlapped a found book by more than that share came out free
+            # once refined (docs/stereo.md, step 4; skipping them saves most of this step)
             return any(quad_overlap(coarse[cam][a], t) > 2 * overlap
                        for cam in ("left", "right") for t in taken[cam])
 
         def union(a: int) -> bool:
             # _is_union over the flat pairs whose left quads may lie inside this one (their
-            # Hough quads overlap it by half, and are smaller), each refined if not yet
+            # Hough quads overlap it by half), each refined if not yet. Of two parts 90 %
+            # inside it, overlapping by at most `overlap` of the smaller, the smaller covers
+            # at most 1 / (1.8 - overlap) of it (0.9 p1 + (0.9 - overlap) p2 <= 1, p2 <= p1;
+            # 2/3 at 0.3): where no Hough quad inside is under 1.2 times that (a margin for
+            # what refinement moves), there is no union and nothing to refine
             inside = np.array([b for b in order.tolist() if b != a
-                               and coarse_area[b] < coarse_area[a]
                                and quad_overlap(coarse["left"][b], as_refined[a]) > 0.5],
                               dtype=np.intp)
-            # Of two parts 90 % inside it and overlapping by at most 30 % of the smaller,
-            # the smaller covers under 70 % of it (0.9 p1 + 0.6 p2 <= 1 with p2 <= p1): with
-            # no such quad (its Hough quad under 80 %), no union, and nothing to refine
             a_area = cv2.contourArea(as_refined[a].astype(np.float32))
-            if not np.any(coarse_area[inside] < 0.8 * a_area):
+            if not np.any(coarse_area[inside] < 1.2 / (1.8 - overlap) * a_area):
                 return False
             settle(inside)
             parts = np.concatenate([[a], inside[ok[inside]]])
