@@ -323,51 +323,59 @@ def test_print_grow_moves_a_side_to_the_edge_where_the_print_ends(book_scene):
     assert grow(short, a + 1, replace(CFG, print_reach=0.04)) == 0.0
     # a move under print_min is left alone (the page block's foot may lie that near)...
     assert grow(short, a + 1, replace(CFG, print_min=0.06, print_near=0.06)) == 0.0
-    # ...but this side's page block shows, its foot about 7 mm out: from print_near on it moves
+    # ...but this side's page block shows, its foot about 13 mm out: from 4 mm beyond
+    # that (print_foot_margin) it moves
     assert grow(short, a + 1, replace(CFG, print_min=0.06)) == pytest.approx(0.05, abs=0.003)
 
 
 def test_print_grow_takes_an_edge_nearer_than_print_min_beyond_the_block_foot(book_scene):
-    # The cover's end whose page block the cameras see (its foot 6.6 mm out across the
-    # cover's plane), cut 14 mm short: under print_min, but beyond the block's face
+    # The cover's end whose page block the cameras see (its foot 12.7 mm out across the
+    # cover's plane), cut 18 mm short: under print_min, but beyond the block's face
     sc, r = book_scene
     det, res, f, texture, _ = _frame(sc, r)
     truth = np.asarray(sc.books[0].corners)[:4]
     a, _ = _long_axis(truth)
     Q = {"left": f.rig.Q_L, "right": f.rig.Q_R}
-    short = _end_in(truth, 1, 0.014)  # side a + 1 14 mm in
+    short = _end_in(truth, 1, 0.018)  # side a + 1 18 mm in
     drop = _drop(short, f.desk_plane)
     assert _block_shows(short, a + 1, Q, drop)
-    assert 0.004 < _foot_offset(short, a + 1, Q, drop) < 0.009
+    assert 0.010 < _foot_offset(short, a + 1, Q, drop) < 0.014
     strength = det._edge_strength(res.segmentation)
 
     def grow(P, s, cfg=CFG):
         return print_grow(P, s, 0.03, Q, f.grads, strength, texture, f.desk_plane,
                           det.cfg.extent, cfg)
 
-    assert grow(short, a + 1) == pytest.approx(0.014, abs=0.003)
-    # an edge within the block's face and foot (a margin past 14 mm): left alone
-    assert grow(short, a + 1, replace(CFG, print_foot_margin=0.012)) == 0.0
+    assert grow(short, a + 1) == pytest.approx(0.018, abs=0.003)
+    # the edge within print_foot_margin of the foot (a margin of 8 mm): left alone
+    assert grow(short, a + 1, replace(CFG, print_foot_margin=0.008)) == 0.0
     # nor under print_near
-    assert grow(short, a + 1, replace(CFG, print_near=0.018)) == 0.0
+    assert grow(short, a + 1, replace(CFG, print_near=0.019)) == 0.0
     # the cover's own end stays
     assert grow(truth, a + 1) == 0.0
+    # the other end, whose block no image shows, cut as short keeps print_min (20 mm)
+    other = _end_in(truth, 0, 0.018)
+    assert not _block_shows(other, (a + 3) % 4, Q, _drop(other, f.desk_plane))
+    assert grow(other, (a + 3) % 4) == 0.0
+    assert grow(other, (a + 3) % 4, replace(CFG, print_min=0.012)) == pytest.approx(
+        0.018, abs=0.003)
 
 
-def test_foot_offset_is_where_the_block_foot_shows_across_the_side():
-    # a camera 1 m above a cover 3 cm up, looking 45 degrees down at its side at x = 0:
-    # the foot of the block below that side shows about 3 cm out across the cover's
-    # plane; below a side facing away it does not show
+@pytest.mark.parametrize("aside", [0.0, 0.5])
+def test_foot_offset_is_where_the_block_foot_shows_across_the_side(aside):
+    # a camera 1 m above a cover 3 cm up, looking 45 degrees down at its side at x = 0,
+    # straight on or from 0.5 m aside: the ray to the foot of the block below that side
+    # crosses the cover's height at x = -1 + 1/1.03, 2.9 cm out across the side either
+    # way; below a side facing away the foot does not show
     K = np.array([[800.0, 0, 512], [0, 800.0, 384], [0, 0, 1]])
-    c = np.array([-1.0, 0.0, 1.03])  # 45 degrees down to the side's midpoint (0, 0, 0.03)
+    c = np.array([-1.0, -aside, 1.03])
     R = _look_at(c, np.array([0.0, 0.0, 0.03]))
     Qc = K @ np.hstack([R, (-R @ c)[:, None]])
     P = np.array([[0.0, -0.1, 0.03], [0.0, 0.1, 0.03], [0.15, 0.1, 0.03], [0.15, -0.1, 0.03]])
     Q = {"left": Qc, "right": Qc}
     drop = np.array([0.0, 0.0, -0.03])
-    # side 0 (corner 0 to 1) lies at x = 0, outward -x, facing the camera: the ray to its
-    # foot crosses the cover's height at x = -1 + 1/1.03 = -0.029; side 2 faces away
-    assert _foot_offset(P, 0, Q, drop) == pytest.approx(1 - 1 / 1.03, abs=1e-3)
+    # side 0 (corner 0 to 1) lies at x = 0, outward -x, facing the camera; side 2 at 0.15
+    assert _foot_offset(P, 0, Q, drop) == pytest.approx(1 - 1 / 1.03, abs=1e-9)
     assert _foot_offset(P, 2, Q, drop) == 0.0
 
 

@@ -118,7 +118,7 @@ class TrimConfig:
     print_grow: bool = True
     print_reach: float = 0.09
     print_min: float = 0.02  # at 15 mm covers nearly right grew onto their block's foot
-    print_near: float = 0.008  # beyond the block's foot: measured in docs/stereo.md
+    print_near: float = 0.008  # from the side, where past the block's foot (docs/stereo.md)
     print_foot_margin: float = 0.004
     print_min_ncc: float = 0.6
     print_margin: float = 0.05
@@ -433,7 +433,7 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
     3. An edge may be the cover's from ``cfg.print_min`` out; where a page block shows
        below the side (:func:`rovis.extent._block_shows`), from ``cfg.print_near`` out
        if that is ``cfg.print_foot_margin`` beyond where the block's foot would show in
-       either image (:func:`_foot_offset`; its face, the side's own, spans the image
+       both images (:func:`_foot_offset`; its face, the side's own, spans the image
        from the side to there, and a side nearly right would grow onto its foot). For
        such an edge, the strip from the side to it must sweep best within the
        tolerance, with an NCC of at least ``cfg.print_min_ncc`` and
@@ -514,18 +514,24 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
 
 def _foot_offset(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
                  drop: NDArray[np.float64]) -> float:
-    """How far beyond side ``s`` of cover ``P`` (4, 3), along the cover's plane, the foot
-    of the page block below it shows (metres; the farther of the two images, 0 at least):
-    where the image of the side's midpoint moved by ``drop`` (onto the desk) lies, across
-    the side, in steps of the side moved outward."""
+    """How far beyond side ``s`` of cover ``P`` (4, 3), across it in the cover's plane, the
+    foot of the page block below its midpoint shows (metres; the farther of the two
+    images, 0 at least): where the ray from each camera through the foot (the midpoint
+    moved by ``drop``, onto the desk) crosses the cover's plane. A side moved out that far
+    has the foot's image on it."""
     a, b = s, (s + 1) % 4
     out = _unit(P[a] - P[(a - 1) % 4])  # outward across side s, as _moved moves it
     mid = 0.5 * (P[a] + P[b])
+    foot = mid + drop
+    up = -_unit(drop)
     far = 0.0
     for cam in ("left", "right"):
-        q = geometry.project(Q[cam], np.array([mid, mid + 0.01 * out, mid + drop]))
-        step = q[1] - q[0]  # the image of 1 cm outward
-        far = max(far, 0.01 * float((q[2] - q[0]) @ step) / max(float(step @ step), 1e-12))
+        centre = -np.linalg.solve(Q[cam][:, :3], Q[cam][:, 3])  # the camera's, world frame
+        ray = foot - centre
+        if abs(up @ ray) < 1e-12:
+            continue
+        crossing = centre + (up @ (mid - centre)) / (up @ ray) * ray
+        far = max(far, float((crossing - mid) @ out))
     return far
 
 
