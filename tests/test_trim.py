@@ -368,25 +368,15 @@ def test_foot_offset_is_where_the_block_foot_shows_across_the_side(aside):
     # crosses the cover's height at x = -1 + 1/1.03, 2.9 cm out across the side either
     # way; below a side facing away the foot does not show
     K = np.array([[800.0, 0, 512], [0, 800.0, 384], [0, 0, 1]])
-    c = np.array([-1.0, -aside, 1.03])
-    R = _look_at(c, np.array([0.0, 0.0, 0.03]))
-    Qc = K @ np.hstack([R, (-R @ c)[:, None]])
+    T_cam_world = geometry.invert_transform(geometry.look_at([-1.0, -aside, 1.03],
+                                                             [0.0, 0.0, 0.03]))
+    Qc = K @ T_cam_world[:3]
     P = np.array([[0.0, -0.1, 0.03], [0.0, 0.1, 0.03], [0.15, 0.1, 0.03], [0.15, -0.1, 0.03]])
     Q = {"left": Qc, "right": Qc}
     drop = np.array([0.0, 0.0, -0.03])
     # side 0 (corner 0 to 1) lies at x = 0, outward -x, facing the camera; side 2 at 0.15
     assert _foot_offset(P, 0, Q, drop) == pytest.approx(1 - 1 / 1.03, abs=1e-9)
     assert _foot_offset(P, 2, Q, drop) == 0.0
-
-
-def _look_at(eye, target):
-    """World-to-camera rotation of a camera at ``eye`` looking at ``target`` (x right, y
-    down in the image, z forward), world z up."""
-    z = (target - eye) / np.linalg.norm(target - eye)
-    x = np.cross(z, [0.0, 0.0, 1.0])
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    return np.array([x, y, z])
 
 
 def test_grow_run_ends_where_the_map_leaves_the_cover_height():
