@@ -11,7 +11,7 @@ from rovis.segment import CascadeController, SegmentConfig, canny, gradients, ho
 from rovis.segment.boundary import evaluate, open_candidates, roi_area
 from rovis.segment.control import unseen_candidates
 from rovis.segment.lines import support_profile
-from rovis.segment.quads import (Quads, _canonical, candidate_quads, order_corners,
+from rovis.segment.quads import (QuadConfig, Quads, _canonical, candidate_quads, order_corners,
                                  three_sided_quads)
 
 H, W = 480, 640
@@ -353,3 +353,17 @@ def test_the_unseen_candidates_are_those_no_earlier_pool_holds():
     again = unseen_candidates(grad, [low], near, cfg, area=roi_area(grad))
     assert _worst_corner_px(again.corners) > 10.0
     assert len(unseen_candidates(grad, [], Quads.empty(), cfg, area=roi_area(grad))) == 0
+
+
+def test_the_quad_stage_bounds_a_candidate_s_area_in_square_pixels():
+    # a 96 x 64 px cover: 6144 px². Until git 173c5d1 the quad stages took an area at half
+    # its value (QuadConfig.min_area_px acted as twice itself, max_area_frac as twice itself)
+    cover = np.array([[300.0, 200.0], [396.0, 200.0], [396.0, 264.0], [300.0, 264.0]])
+    grad, lines, profile = _chain(_drawn((cover,), 11, 2.0))
+    area = roi_area(grad)
+    kept = candidate_quads(lines, profile, grad.shape, area, QuadConfig(min_area_px=6000.0))
+    assert _worst_to(kept.corners, cover) < 1.5  # px
+    # below the bound, or over half of the region of interest: no candidate
+    for cfg, roi in ((QuadConfig(min_area_px=6300.0), area), (QuadConfig(), 12000.0)):
+        assert _worst_to(candidate_quads(lines, profile, grad.shape, roi, cfg).corners,
+                         cover) > 10.0

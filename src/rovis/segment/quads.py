@@ -26,11 +26,18 @@ CornerGraph = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
 
 @dataclass(frozen=True)
 class QuadConfig:
-    """What counts as a book cover in the image (pixels, degrees)."""
+    """What counts as a book cover in the image (pixels, degrees).
+
+    ``min_area_px`` (pixels²) is the smallest cover: 5000, the bound the quad stages
+    applied until git 173c5d1 took areas at half their value. 2500 finds a few more of
+    the smallest books, but more printed blocks, title bands and papers inside or beside
+    covers win eq. 2 and the stereo pairing (measured: docs/segmentation.md, "The smallest
+    cover").
+    """
 
     min_side_px: float = 30.0
     max_side_px: float = 700.0
-    min_area_px: float = 2500.0
+    min_area_px: float = 5000.0
     max_area_frac: float = 0.5  # of the ROI area
     parallel_deg: float = 30.0  # opposite sides: at most this far from parallel
     min_corner_deg: float = 40.0  # interior angles within [min, 180 - min]
@@ -149,7 +156,7 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
         side_lines, hits, support = side_lines[best], hits[best], support[best]
     s0, s1, s2, s3 = side_lines.T
     corners = np.stack([X[s3, s0], X[s0, s1], X[s1, s2], X[s2, s3]], axis=1)  # corner s starts side s
-    area = 0.5 * np.abs(_shoelace(corners))
+    area = np.abs(_shoelace(corners))  # pixels²
     keep = ((area >= cfg.min_area_px) & (area <= cfg.max_area_frac * roi_area)
             & _convex_with_angles(corners, cfg.min_corner_deg))
     quads = Quads(side_lines[keep], corners[keep], support[keep], hits[keep].sum(axis=1),
@@ -234,7 +241,7 @@ def three_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[
         far_len * np.hypot(base_dir[:, 0], base_dir[:, 1]) + 1e-12)
     h, w = image_shape
     inside = np.all((far_a >= 0) & (far_a < [w, h]), axis=1) & np.all((far_c >= 0) & (far_c < [w, h]), axis=1)
-    area = 0.5 * np.abs(_shoelace(corners))
+    area = np.abs(_shoelace(corners))  # pixels²
     keep = ((far_len >= cfg.min_side_px) & (far_len <= cfg.max_side_px)
             & (cos_far >= np.cos(np.radians(max_skew_deg))) & inside
             & (area >= cfg.min_area_px) & (area <= cfg.max_area_frac * roi_area)
@@ -308,7 +315,7 @@ def two_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     corners = np.stack([x, end_a, end_a + end_b - x, end_b], axis=1)  # sides: a, open, open, b
     h, wid = image_shape
     inside = np.all((corners >= 0) & (corners < [wid, h]), axis=(1, 2))
-    area = 0.5 * np.abs(_shoelace(corners))
+    area = np.abs(_shoelace(corners))  # pixels²
     keep = (inside & (end[ra, w] <= cfg.max_side_px) & (end[rb, w] <= cfg.max_side_px)
             & (area >= cfg.min_area_px) & (area <= cfg.max_area_frac * roi_area)
             & _convex_with_angles(corners, cfg.min_corner_deg))
@@ -403,7 +410,7 @@ def opposite_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tup
     lat = np.hypot(*(corners[:, 2] - corners[:, 1]).T), np.hypot(*(corners[:, 0] - corners[:, 3]).T)
     h, w = image_shape
     inside = np.all((corners >= 0) & (corners < [w, h]), axis=(1, 2))
-    area = 0.5 * np.abs(_shoelace(corners))
+    area = np.abs(_shoelace(corners))  # pixels²
     side_a, side_b = (t_a1 - t_a0)[ok], (s1 - s0)[ok]
     keep = (inside & (np.minimum(lat[0], lat[1]) >= cfg.min_side_px)
             & (np.maximum(lat[0], lat[1]) <= cfg.max_side_px)
@@ -579,7 +586,7 @@ class CoverSelection:
     def __init__(self, quads: Quads, cfg: QuadConfig = QuadConfig()) -> None:
         quads, group_votes = _distinct(quads, cfg.duplicate_px)
         self.quads, self.votes, self.cfg = quads, group_votes, cfg
-        areas = 0.5 * np.abs(_shoelace(quads.corners))
+        areas = np.abs(_shoelace(quads.corners))
         lo, hi = quads.corners.min(axis=1), quads.corners.max(axis=1)
         self.near = np.all((lo[:, None] <= hi[None, :]) & (lo[None, :] <= hi[:, None]), axis=2)
         L = quads.lines
