@@ -166,17 +166,42 @@ def test_a_book_from_the_late_candidates_only_when_they_are_asked(book):
     late = {cam: replace(Segmentation.empty(100.0, 30), late_pool=_pool([q]))
             for cam, q in quads.items()}
     assert det._from_pool(rig, late, grads, [], DESK, None) == []  # not before the others
-    found = det._from_pool(rig, late, grads, [], DESK, None, late=True)
+    found = det._from_pool(rig, late, grads, [], DESK, None, extra="late")
     assert len(found) == 1
     assert np.linalg.norm(found[0][1].pose.center - P.mean(axis=0)) < 0.005  # metres
     # one image's quad late, the other's among the candidates: paired too
     mixed = {"left": late["left"],
              "right": replace(Segmentation.empty(100.0, 30), pool=_pool([quads["right"]]))}
-    assert len(det._from_pool(rig, mixed, grads, [], DESK, None, late=True)) == 1
+    assert len(det._from_pool(rig, mixed, grads, [], DESK, None, extra="late")) == 1
     # a pair of the earlier pools alone is not tried again
     early = {cam: replace(Segmentation.empty(100.0, 30), pool=_pool([q]))
              for cam, q in quads.items()}
-    assert det._from_pool(rig, early, grads, [], DESK, None, late=True) == []
+    assert det._from_pool(rig, early, grads, [], DESK, None, extra="late") == []
+
+
+def test_a_book_from_the_small_candidates_in_a_pass_of_their_own(book):
+    # the same cover offered only among the candidates smaller than a cover of one image
+    # (Segmentation.small_pool): paired in the "small" pass only, never in the late one
+    P, grads, rig = book
+    quads = {cam: geometry.project(Q, P) for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
+    det = Detector(rig, DetectConfig())
+    small = {cam: replace(Segmentation.empty(100.0, 30), small_pool=_pool([q]))
+             for cam, q in quads.items()}
+    assert det._from_pool(rig, small, grads, [], DESK, None) == []
+    assert det._from_pool(rig, small, grads, [], DESK, None, extra="late") == []
+    found = det._from_pool(rig, small, grads, [], DESK, None, extra="small")
+    assert len(found) == 1
+    assert np.linalg.norm(found[0][1].pose.center - P.mean(axis=0)) < 0.005  # metres
+    # the small and the late pool in one segmentation: each refined quad cached by its
+    # index is the one of its own pool (the late pass after the small one, one cache)
+    decoy = _rectangle(center=(0.7, 0.5), size=(0.15, 0.10), z=0.02, yaw_deg=-30.0)
+    both = {cam: replace(small[cam], late_pool=_pool([geometry.project(Q, decoy)]))
+            for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
+    refined: dict = {}
+    assert len(det._from_pool(rig, both, grads, [], DESK, None, refined, extra="small")) == 1
+    assert all(k == 0 for _, k in refined)  # the small quad, after the empty pools
+    det._from_pool(rig, both, grads, [], DESK, None, refined, extra="late")
+    assert sorted({k for _, k in refined}) == [0, 1]  # the decoy refined at 1, not at 0
 
 
 def test_a_pair_tilted_by_the_inward_cover_edge_search_is_refined_without_it(book, monkeypatch):
@@ -289,7 +314,7 @@ def test_a_late_pair_that_fits_no_rectangle_is_refused(book, monkeypatch):
             "right": replace(Segmentation.empty(100.0, 30), late_pool=_pool([skewed]))}
     monkeypatch.setattr(pipeline, "refine_quad_both", lambda grad, q, **kw: (q, q))
     assert Detector(rig, DetectConfig())._from_pool(rig, segs, grads, [], DESK, None,
-                                                    late=True) == []
+                                                    extra="late") == []
     loose = with_settings(DetectConfig(), ["stereo.late_max_reprojection_px=3"])
-    kept = Detector(rig, loose)._from_pool(rig, segs, grads, [], DESK, None, late=True)
+    kept = Detector(rig, loose)._from_pool(rig, segs, grads, [], DESK, None, extra="late")
     assert len(kept) == 1 and 1.0 < kept[0][1].reprojection_error_px <= 3.0

@@ -367,3 +367,14 @@ def test_the_quad_stage_bounds_a_candidate_s_area_in_square_pixels():
     for cfg, roi in ((QuadConfig(min_area_px=6300.0), area), (QuadConfig(), 12000.0)):
         assert _worst_to(candidate_quads(lines, profile, grad.shape, roi, cfg).corners,
                          cover) > 10.0
+
+
+def test_a_cover_smaller_than_the_covers_bound_goes_to_stereo_only():
+    # 80 x 50 px: 4000 px², under QuadConfig.min_area_px = 5000, over pool_min_area_px
+    small = np.array([[300.0, 200.0], [380.0, 200.0], [380.0, 250.0], [300.0, 250.0]])
+    grad = gradients(_drawn((small,), 12, 2.0))
+    seg = CascadeController(SegmentConfig(), warm_start=False).segment(grad)
+    assert _worst_to(seg.corners, small) > 10.0 and _worst_to(seg.pool.corners, small) > 10.0
+    assert _worst_to(seg.small_pool.corners, small) < 1.5  # px, Hough corners
+    off = CascadeController(SegmentConfig(pool_min_area_px=5000.0), warm_start=False)
+    assert len(off.segment(grad).small_pool) == 0

@@ -416,6 +416,11 @@ class Detector:
             # (without the desk plane, nothing tells a book from a flat rectangle of a
             # pattern: on the real chessboard pairs, squares of the board)
             found += self._from_pool(rig, segs, grads, found, desk_plane, texture, refined)
+            if any(len(seg.small_pool) for seg in segs.values()):
+                # beyond the paper: then the candidates smaller than a cover of one image
+                # (Segmentation.small_pool), in a pass of their own
+                found += self._from_pool(rig, segs, grads, found, desk_plane, texture, refined,
+                                         extra="small")
             lap("stereo")
         maps: list[tuple[HeightMap, NDArray[np.float64], HeightMapConfig, int]] = []
         if self.cfg.heightmap.enabled and desk_plane is not None:
@@ -440,7 +445,7 @@ class Detector:
             # beyond the paper: the candidates with sides unseen of the closed loop's other
             # T_H (Segmentation.late_pool), after the height maps, before the one-image search
             found += self._from_pool(rig, segs, grads, found, desk_plane, texture, refined,
-                                     late=True)
+                                     extra="late")
             lap("stereo")
         if self.cfg.stereo.pool_transfer and desk_plane is not None:
             # beyond the paper: one image's candidates looked for in the other, last
@@ -817,11 +822,14 @@ class Detector:
                    grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
                    desk_plane: NDArray[np.float64],
                    texture: dict[str, NDArray[np.float32]] | None,
-                   refined: Refined | None = None, *, late: bool = False,
+                   refined: Refined | None = None, *,
+                   extra: Literal["late", "small"] | None = None,
                    ) -> list[tuple[Pair, BookDetection]]:
         """Books from the two images' candidate pools (:attr:`Segmentation.pool`, then
-        :attr:`Segmentation.open_pool`) where no book is yet; with ``late``, only the pairs
-        with a quad of :attr:`Segmentation.late_pool` (the closed loop's other T_H).
+        :attr:`Segmentation.open_pool`) where no book is yet; with ``extra``, only the pairs
+        with a quad of :attr:`Segmentation.small_pool` (``"small"``: the candidates smaller
+        than a cover of one image) or :attr:`Segmentation.late_pool` (``"late"``: the
+        closed loop's other T_H).
 
         The pairs of Hough quads that roughly make a flat, book-sized rectangle
         (:func:`rovis.stereo.pool_pairs`) are refined in both images (Hough corners are
@@ -839,21 +847,27 @@ class Detector:
         """
         cfg = self.cfg
         overlap = cfg.stereo.transfer_max_overlap
-        # the full candidates and those with one side unseen (Segmentation.open_pool)
-        # (the late pool after the others: a refined quad is cached by its index)
-        pool = {cam: Quads.concat([segs[cam].pool, segs[cam].open_pool]
-                                  + ([segs[cam].late_pool] if late else []))
-                for cam in ("left", "right")}
-        early = {cam: len(segs[cam].pool) + len(segs[cam].open_pool) for cam in pool}
+        # the full candidates and those with one side unseen (Segmentation.open_pool),
+        # then the small and the late pool: a refined quad is cached by its index in this
+        # order, the same in every pass
+        late = extra == "late"
+        parts = {cam: [segs[cam].pool, segs[cam].open_pool, segs[cam].small_pool]
+                 + ([segs[cam].late_pool] if late else []) for cam in ("left", "right")}
+        pool = {cam: Quads.concat(parts[cam]) for cam in parts}
+        # the pass's own quads from `early` on; the small ones are no partner in the late
+        early = {cam: sum(len(q) for q in parts[cam][:3 if late else 2]) for cam in pool}
+        skip = {cam: range(early[cam] - len(segs[cam].small_pool), early[cam]) if late
+                else range(early[cam], len(pool[cam])) if extra is None else range(0)
+                for cam in pool}
         taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
-        index = {cam: np.array([k for k, q in enumerate(pool[cam].corners)
-                                if not any(quad_overlap(q, t) > overlap for t in taken[cam])],
+        index = {cam: np.array([k for k, q in enumerate(pool[cam].corners) if k not in skip[cam]
+                                and not any(quad_overlap(q, t) > overlap for t in taken[cam])],
                                dtype=np.intp) for cam in pool}
         pp = pool_pairs(pool["left"].corners[index["left"]], pool["right"].corners[index["right"]],
                         rig.Q_L, rig.Q_R, desk_plane=desk_plane,
                         side_range=(0.8 * cfg.min_cover_side, 1.1 * cfg.max_cover_side),
                         cfg=cfg.stereo)
-        if late and len(pp):  # the pairs of the other pools were tried before
+        if extra and len(pp):  # the pairs of the other pools were tried before
             pp = pp.take(np.flatnonzero((index["left"][pp.left] >= early["left"])
                                         | (index["right"][pp.right] >= early["right"])))
         if len(pp) == 0:
@@ -888,7 +902,8 @@ class Detector:
             return []
         # on busy texture (thousands of pairs of candidates) only those closest to their
         # epipolar segments are refined, which bounds the time
-        order = np.sort(np.argsort(pp.error_px, kind="stable")[:cfg.stereo.pool_max_pairs])
+        most = cfg.stereo.small_max_pairs if extra == "small" else cfg.stereo.pool_max_pairs
+        order = np.sort(np.argsort(pp.error_px, kind="stable")[:most])
         i, j, pp = i[order], j[order], pp.take(order)
         cache: Refined = {} if refined is None else refined
 

@@ -75,6 +75,7 @@ class StereoConfig:
     # (Segmentation.pool): pairs that make a flat, book-sized rectangle (pool_pairs).
     pool: bool = True
     pool_max_pairs: int = 300  # refined per frame, the smallest epipolar error first
+    small_max_pairs: int = 20  # ...in the pass of the small candidates (Segmentation.small_pool)
     # Where no book is yet, last, a candidate quad of one image (Segmentation.pool) looked
     # for in the other (find_in_other_view) where, refined, its own image shows its sides:
     # every side's step along pool_transfer_seen of it (rovis.segment.boundary.side_evidence),

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from rovis.segment.edges import Gradients, canny
 from rovis.segment.lines import (Lines, SupportProfile, hough_lines, intersect, refine_lines,
                                  refine_segment, support_profile)
-from rovis.segment.quads import (CoverSelection, QuadConfig, Quads, _canonical, _corner_graph,
+from rovis.segment.quads import (CoverSelection, QuadConfig, Quads, _canonical, _corner_graph, _shoelace,
                                  canonical_quads,
                                  _distinct, candidate_quads, opposite_sided_quads, order_corners,
                                  three_sided_quads, two_sided_quads)
@@ -68,6 +68,12 @@ class SegmentConfig:
     pool_size : int
         Most candidate quads kept per evaluation and per image for stereo to choose from
         (:attr:`Segmentation.pool`), the most edge pixels first.
+    pool_min_area_px : float
+        Beyond the paper: the candidates with all four sides seen of this area (pixels²)
+        up to ``quads.min_area_px`` are offered to stereo on their own
+        (:attr:`Segmentation.small_pool`), never covers of one image: a small book at the
+        far side of the workspace, among more printed blocks and papers (measured:
+        docs/segmentation.md, "The smallest cover"). At ``quads.min_area_px`` or above: none.
     refine_gamma : float
         Beyond the paper, off by default (1: refine on the image as it is): the camera's
         gamma, undone for the sub-pixel refinement of the covers' sides
@@ -130,6 +136,7 @@ class SegmentConfig:
     pool_lines: int = 100
     pool_min_support: float = 0.7
     refine_lines: bool = True
+    pool_min_area_px: float = 2500.0
     three_sided: bool = True
     three_sided_evaluations: int = 3
     three_sided_support: float = 0.95
@@ -155,6 +162,9 @@ class Evaluation:
     # were formed from: for the three-sided candidates (open_candidates)
     all_lines: Lines | None = None
     profile: SupportProfile | None = None
+    # candidates under QuadConfig.min_area_px (down to SegmentConfig.pool_min_area_px):
+    # never covers of this image, for stereo's pool only
+    small: Quads | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -202,6 +212,11 @@ class Segmentation:
         Beyond the paper: as :attr:`open_pool`, from the closed loop's other evaluations
         (``SegmentConfig.late_open``), less those near :attr:`pool` or :attr:`open_pool`;
         stereo pairs them after the height maps, before the one-image search.
+    small_pool : Quads
+        Beyond the paper: the four-sided candidates of every evaluation smaller than a
+        cover (``SegmentConfig.pool_min_area_px`` to ``QuadConfig.min_area_px``), the most
+        edge pixels first, corners in eq. 1 order; stereo pairs them in a pass of their own
+        after the other pools (``StereoConfig.small_max_pairs`` pairs at most).
     three_sided : ndarray, shape (K,), bool
         Per cover, whether it is one of the three-sided candidates, kept as a cover
         (``SegmentConfig.three_sided_support``): its fourth side unseen; its ``support``
@@ -220,6 +235,7 @@ class Segmentation:
     pool: Quads = field(default_factory=Quads.empty)
     open_pool: Quads = field(default_factory=Quads.empty)
     late_pool: Quads = field(default_factory=Quads.empty)
+    small_pool: Quads = field(default_factory=Quads.empty)
     three_sided: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, bool))
 
     def __len__(self) -> int:
@@ -269,8 +285,12 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
     profile = support_profile(lines, edges, grad, box=grad.box)
     if cfg.refine_lines:  # Hough's 1° cells, undone: a long side's corners keep their arms
         lines, profile = refine_lines(lines, edges, profile, grad, box=grad.box)
-    quads = candidate_quads(lines, profile, grad.shape, area, cfg.quads)
-    selection = CoverSelection(quads, cfg.quads)
+    quads = candidate_quads(lines, profile, grad.shape, area,
+                            replace(cfg.quads, min_area_px=min(cfg.quads.min_area_px,
+                                                               cfg.pool_min_area_px)))
+    big = np.abs(_shoelace(quads.corners)) >= cfg.quads.min_area_px
+    small = quads.take(~big)
+    selection = CoverSelection(quads.take(big), cfg.quads)
     if T_HG is not None:
         candidates = [low]
     else:
@@ -285,7 +305,7 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
         y = quality(n, covers.n_f, area, cfg.n_max, sign=cfg.quality_sign)
         if best is None or y > best.y:
             best = Evaluation(T_H, t, y, lines.take(lines.votes >= t), covers, len(candidates),
-                              selection, lines, profile)
+                              selection, lines, profile, small)
     assert best is not None
     _lap(timing, "quads", clock)
     return best
@@ -304,17 +324,19 @@ def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
            alternatives: tuple[NDArray[np.float64], ...] = (),
            pool: Quads | None = None, pool_size: int = 400,
            refine: Gradients | None = None, open_pool: Quads | None = None,
-           late_pool: Quads | None = None) -> Segmentation:
+           late_pool: Quads | None = None, small_pool: Quads | None = None) -> Segmentation:
     """Refine the chosen covers to sub-pixel corners and order them (eq. 1), on
     ``refine``'s gradients if given (:func:`rovis.segment.edges.linear_gradients`), else on
     ``grad``'s; ``timing`` accumulates the milliseconds under ``"refine"``; ``alternatives``: per cover of ``ev``,
     other quads over it (kept as they are); ``pool``: the candidates for
     :attr:`Segmentation.pool` (default: ``ev``'s own, at most ``pool_size``,
-    :func:`candidate_pool`); ``open_pool``, ``late_pool``: :attr:`Segmentation.open_pool`'s
-    and :attr:`Segmentation.late_pool`'s."""
+    :func:`candidate_pool`); ``open_pool``, ``late_pool``, ``small_pool``:
+    :attr:`Segmentation.open_pool`'s, :attr:`Segmentation.late_pool`'s and
+    :attr:`Segmentation.small_pool`'s."""
     clock = time.perf_counter()
-    open_pool, late_pool = (canonical_quads(q) if q is not None and len(q) else Quads.empty()
-                            for q in (open_pool, late_pool))
+    open_pool, late_pool, small_pool = (
+        canonical_quads(q) if q is not None and len(q) else Quads.empty()
+        for q in (open_pool, late_pool, small_pool))
     if pool is None:
         pool = candidate_pool([ev.selection.quads] if ev.selection is not None else [],
                               pool_size)
@@ -323,7 +345,7 @@ def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
         _lap(timing, "refine", clock)
         return Segmentation(np.zeros((0, 4, 2)), np.zeros((0, 4, 2)), np.zeros(0), ev.lines,
                             ev.T_H, ev.T_HG, ev.y, iterations, pool=pool, open_pool=open_pool,
-                            late_pool=late_pool)
+                            late_pool=late_pool, small_pool=small_pool)
     refined, coarse = [], []
     for quad in ev.covers.corners:
         refined.append(order_corners(refine_quad(refine or grad, quad)))
@@ -333,7 +355,7 @@ def finish(grad: Gradients, ev: Evaluation, iterations: int, *,
     support = (ev.covers.support * seen).sum(axis=1) / seen.sum(axis=1)  # of the seen sides
     return Segmentation(np.array(refined), np.array(coarse), support, ev.lines, ev.T_H,
                         ev.T_HG, ev.y, iterations, alternatives, pool=pool,
-                        open_pool=open_pool, late_pool=late_pool,
+                        open_pool=open_pool, late_pool=late_pool, small_pool=small_pool,
                         three_sided=~seen.all(axis=1))
 
 

@@ -59,6 +59,7 @@ class CascadeController:
         area = roi_area(grad)
         seen: dict[float, Evaluation] = {}
         pool: list[Quads] = []  # every evaluation's candidates (Segmentation.pool)
+        smalls: list[Quads] = []  # and those under QuadConfig.min_area_px (late_pool)
 
         def run(log_T_H: float) -> Evaluation:
             lo, hi = np.log(self.cfg.T_H_range[0]), np.log(self.cfg.T_H_range[1])
@@ -67,6 +68,8 @@ class CascadeController:
                 ev = evaluate(grad, float(np.exp(key)), self.cfg, area=area, timing=timing)
                 if ev.selection is not None:
                     pool.append(candidate_pool([ev.selection.quads], self.cfg.pool_size))
+                if ev.small is not None and len(ev.small):
+                    smalls.append(ev.small)
                 # an evaluation's candidates (megabytes on busy texture) serve only the
                 # optimum's alternatives: those of one below the best so far are let go
                 top = max(seen.values(), key=lambda e: e.y, default=None)
@@ -122,8 +125,10 @@ class CascadeController:
                         and all(e.profile is not c.profile for c in chosen)]
                 late_pool = unseen_candidates(grad, rest, Quads.concat([full, open_pool]),
                                               self.cfg, area=area, timing=timing)
+        small_pool = candidate_pool(smalls, self.cfg.pool_size) if smalls else None
         return finish(grad, best, iterations, timing=timing, alternatives=alternatives,
-                      pool=full, refine=refine, open_pool=open_pool, late_pool=late_pool)
+                      pool=full, refine=refine, open_pool=open_pool, late_pool=late_pool,
+                      small_pool=small_pool)
 
     def _full_search(self, run) -> Evaluation:  # type: ignore[no-untyped-def]
         lo, hi = np.log(self.cfg.T_H_range[0]), np.log(self.cfg.T_H_range[1])

@@ -29,10 +29,11 @@ class QuadConfig:
     """What counts as a book cover in the image (pixels, degrees).
 
     ``min_area_px`` (pixels²) is the smallest cover: 5000, the bound the quad stages
-    applied until git 173c5d1 took areas at half their value. 2500 finds a few more of
-    the smallest books, but more printed blocks, title bands and papers inside or beside
-    covers win eq. 2 and the stereo pairing (measured: docs/segmentation.md, "The smallest
-    cover").
+    applied until git 173c5d1 took areas at half their value. As a cover's bound 2500 finds
+    a few more of the smallest books, but more printed blocks, title bands and papers
+    inside or beside covers win eq. 2 and the stereo pairing; the four-sided candidates
+    down to ``SegmentConfig.pool_min_area_px`` go to stereo on their own instead
+    (measured: docs/segmentation.md, "The smallest cover").
     """
 
     min_side_px: float = 30.0
