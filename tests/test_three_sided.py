@@ -378,3 +378,12 @@ def test_a_cover_smaller_than_the_covers_bound_goes_to_stereo_only():
     assert _worst_to(seg.small_pool.corners, small) < 1.5  # px, Hough corners
     off = CascadeController(SegmentConfig(pool_min_area_px=5000.0), warm_start=False)
     assert len(off.segment(grad).small_pool) == 0
+    # distinct candidates (each 4-cycle is formed twice, once per pair of opposite lines),
+    # the most edge pixels first, from the one-evaluation methods too
+    from rovis.segment.methods import segment
+    for method in ("closed", "open"):
+        pool = segment(_drawn((small,), 12, 2.0), grad, method).small_pool
+        assert len(pool) >= 1 and np.all(np.diff(pool.n_f) <= 0)
+        c = _canonical(pool.corners).reshape(len(pool), 8)
+        apart = np.abs(c[:, None] - c[None]).max(axis=2) + np.eye(len(pool)) * 1e9
+        assert apart.min() > 3.0  # px

@@ -289,7 +289,7 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
                             replace(cfg.quads, min_area_px=min(cfg.quads.min_area_px,
                                                                cfg.pool_min_area_px)))
     big = np.abs(_shoelace(quads.corners)) >= cfg.quads.min_area_px
-    small = quads.take(~big)
+    small = _distinct(quads.take(~big), cfg.quads.duplicate_px)[0]  # each 4-cycle comes twice
     selection = CoverSelection(quads.take(big), cfg.quads)
     if T_HG is not None:
         candidates = [low]

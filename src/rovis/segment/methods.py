@@ -111,7 +111,9 @@ def _finish_one(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
         ev, alternatives, open_pool = with_open_candidates(
             grad, ev, alternatives, [ev], full, cfg, area=roi_area(grad), timing=timing)
     return finish(grad, ev, 1, timing=timing, alternatives=alternatives, pool=full,
-                  refine=refine, open_pool=open_pool, small_pool=ev.small)
+                  refine=refine, open_pool=open_pool,
+                  small_pool=candidate_pool([ev.small] if ev.small is not None else [],
+                                            cfg.pool_size))
 
 
 _LSD = None
