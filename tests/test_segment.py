@@ -480,3 +480,39 @@ def test_gradients_of_a_region_are_the_whole_images_inside_it():
         assert np.array_equal(a[34:146, 44:196], b[34:146, 44:196])
         assert not a[:30].any() and not a[150:].any() and not a[:, :40].any() and not a[:, 200:].any()
     assert part.box == whole.box
+
+
+@pytest.mark.parametrize("sign", [+1, -1])
+def test_the_inner_loop_finds_the_best_hough_threshold_exactly(monkeypatch, sign):
+    # covers A and B (every side 100 votes) and a quad C over both through a 60-vote line:
+    # C displaces them from T_HG 60 down. With the printed e^{+N/N_max}, y between two
+    # breakpoints is highest at the interval's bottom (61 here), which the inner loop
+    # must try; every T_HG, tried one by one, gives no higher y
+    import rovis.segment.boundary as B
+    from rovis.segment.edges import Gradients
+    from rovis.segment.lines import Lines
+    from rovis.segment.quads import CoverSelection, Quads
+
+    def square(x0, y0, x1, y1):
+        return [[x0, y0], [x1, y0], [x1, y1], [x0, y1]]
+
+    quads = Quads(np.arange(12).reshape(3, 4),
+                  np.array([square(100, 100, 200, 200), square(205, 100, 305, 200),
+                            square(95, 96, 310, 204)], float),
+                  np.ones((3, 4)), np.array([380.0, 380.0, 600.0]), np.array([100, 100, 60]))
+    votes = np.array(sorted([100] * 8 + list(range(70, 95)) + [65, 62, 61, 60], reverse=True))
+    lines = Lines(np.arange(len(votes), dtype=float), np.zeros(len(votes)), votes)
+    monkeypatch.setattr(B, "canny", lambda *a, **k: np.zeros((480, 640), np.uint8))
+    monkeypatch.setattr(B, "hough_lines", lambda *a, **k: lines)
+    monkeypatch.setattr(B, "support_profile", lambda *a, **k: None)
+    monkeypatch.setattr(B, "refine_lines", lambda ln, e, p, *a, **k: (ln, p))
+    monkeypatch.setattr(B, "candidate_quads", lambda *a, **k: quads)
+    grad = Gradients(np.zeros((480, 640), np.int16), np.zeros((480, 640), np.int16), None,
+                     (0, 0, 640, 480))
+    cfg = SegmentConfig(quality_sign=sign)
+    ev = B.evaluate(grad, 100.0, cfg)
+    selection = CoverSelection(quads, cfg.quads)
+    every = {t: quality(int(np.sum(votes >= t)), selection.at(t).n_f, 640 * 480, cfg.n_max,
+                        sign=sign) for t in range(cfg.T_HG_min, 102)}
+    assert ev.y == pytest.approx(max(every.values()), rel=1e-12)
+    assert sorted(ev.covers.n_f) == [380.0, 380.0]  # the two books, not the quad over both

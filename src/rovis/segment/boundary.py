@@ -260,10 +260,12 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
     """Run Canny → Hough → quads at one T_H and pick T_HG (or use the one given).
 
     The inner loop is exact and cheap: one Hough pass at the lowest threshold gives every
-    line with its votes; a quad exists for every T_HG up to its weakest side's votes. With
-    e^{-N/N_max}, y only grows with T_HG between those breakpoints, so its maximum is at
-    one of them; with the printed e^{+N/N_max} it may also sit at the lowest T_HG with
-    N ≤ N_max. Only those candidates are evaluated (at most ``cfg.max_inner``).
+    line with its votes; a quad exists for every T_HG up to its weakest side's votes, and
+    an outline gives way to its nested covers up to theirs (:class:`CoverSelection`).
+    Between those breakpoints the covers stay the same and only N changes, falling as
+    T_HG rises: with e^{-N/N_max} y is highest at the top of each such interval, with the
+    printed e^{+N/N_max} at its bottom (one above the next breakpoint down, or the lowest
+    T_HG with N ≤ N_max). Only those T_HG are evaluated (at most ``cfg.max_inner``).
 
     ``timing``, if given, accumulates the milliseconds spent in Canny (``"canny"``), Hough
     (``"hough"``) and the quad stage with the inner loop (``"quads"``).
@@ -294,7 +296,14 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
     if T_HG is not None:
         candidates = [low]
     else:
-        candidates = sorted({int(v) for v in selection.votes if v >= low} | {low}, reverse=True)
+        # the T_HG at which the covers change: a quad appears at or below its votes, an
+        # outline at or above one more than its nested covers'
+        tops = ({int(v) for v in selection.votes if v >= low}
+                | {int(c) for c in selection.cover_votes if c >= low})
+        if cfg.quality_sign > 0:  # each interval's bottom: one above the top below it
+            highest = max(tops, default=low)
+            tops = {t + 1 for t in tops if t + 1 <= highest}
+        candidates = sorted(tops | {low}, reverse=True)
         if len(candidates) > cfg.max_inner:
             pick = np.linspace(0, len(candidates) - 1, cfg.max_inner).round().astype(int)
             candidates = [candidates[i] for i in sorted(set(pick))]
