@@ -149,8 +149,8 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     seen = np.maximum(hi - lo, 0.0)  # the part of each side inside the image
     hits = profile.hits(side_lines.ravel(), lo.ravel(), np.maximum(hi, lo).ravel()).reshape(-1, 4)
     support = np.minimum(hits / np.maximum(seen, 1.0), 1.0)  # rounding: a sample over, at most
-    ok = (_min4(support.T) >= cfg.min_support) & \
-        (_min4(seen.T) >= cfg.min_in_view * _min4(np.maximum(length - 2 * trim, 1.0).T))
+    ok = (_min4(support.T) >= cfg.min_support) & np.all(  # every side this much in view
+        seen >= cfg.min_in_view * np.maximum(length - 2 * trim, 1.0), axis=1)
     side_lines, hits, support = side_lines[ok], hits[ok], support[ok]
     if len(side_lines) > cfg.max_candidates:  # busy texture: keep the best-supported
         best = np.argsort(-hits.sum(axis=1), kind="stable")[:cfg.max_candidates]
