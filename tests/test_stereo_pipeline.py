@@ -199,6 +199,35 @@ def test_without_the_desk_plane_a_rectangle_printed_on_a_cover_gives_way(scene):
     assert [bk for _, bk in kept] == [books[0][1], books[2][1]]
 
 
+def test_a_print_dropped_without_the_desk_plane_is_reported(monkeypatch):
+    # a rectangle printed on the largest cover, found as a book of its own, gives way to
+    # the cover (Detector._without_prints) and is reported as dropped, "printed"
+    import rovis.pipeline as P
+    from rovis.calib import StereoRig
+    sc = sample_scene(16, lux=500.0)
+    r = render(sc, 16)
+    rig = sc.rig
+    bare = StereoRig.from_arrays(K1=rig.K1, D1=rig.D1, K2=rig.K2, D2=rig.D2, R=rig.R, T=rig.T,
+                                 image_size=rig.image_size)
+    drop_prints = P.Detector._without_prints
+
+    def with_a_print(self, found, **kw):
+        pair, book = max(found, key=lambda pb: float(np.prod(pb[1].pose.size[:2])))
+        W = book.corners_world
+        inner = W.mean(axis=0) + 0.75 * (W - W.mean(axis=0))
+        view = self._view_rig(bare)
+        inner_pair, inner_book, why = self._reconstruct_or_why(
+            view, P._pair_at(view, pair, inner), None)
+        assert inner_book is not None, why
+        return drop_prints(self, found + [(inner_pair, inner_book)], **kw)
+
+    monkeypatch.setattr(P.Detector, "_without_prints", with_a_print)
+    res = Detector(bare, DetectConfig(use_marker=False)).detect(r.left, r.right)
+    assert res.desk_plane is None
+    assert [why for why, *_ in res.dropped].count("printed") == 1
+    assert any("printed: 1" in w for w in res.warnings)
+
+
 def test_no_cover_is_invented_where_the_other_image_shows_desk(scene):
     sc, r = scene
     rig = sc.rig

@@ -453,10 +453,11 @@ class Detector:
                                                texture, refined)
             lap("stereo")
         # a failed pair whose quad became a book through the one-image search is not lost
+        # (a print lies inside the cover it was dropped for: it is always reported)
         dropped = [(why, pair.left, pair.right) for pair, book, why in books
-                   if book is None and not any(
+                   if book is None and (why == "printed" or not any(
                        quad_overlap(pair.left, p.left) > self.cfg.stereo.transfer_max_overlap
-                       for p, _ in found)]
+                       for p, _ in found))]
         if dropped:
             count = Counter(why for why, _, _ in dropped)
             warnings.append(f"{len(dropped)} stereo pair(s) of quads dropped: no flat, book-sized "
