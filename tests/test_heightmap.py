@@ -167,6 +167,23 @@ def test_the_smooth_map_reads_a_cover_without_print(desk_book):
     np.testing.assert_allclose(sides, [0.15, 0.15, 0.22, 0.22], atol=0.03)
 
 
+def test_the_smooth_map_s_projection_is_where_pyrdown_puts_a_point(desk_book):
+    sc, r, ideal = desk_book
+    desk = np.asarray(r.truth["desk_plane"])
+    _, Q_half, _ = smooth_height_map(ideal["left"], ideal["right"], sc.rig.Q_L, sc.rig.Q_R,
+                                     desk, cfg=HeightMapConfig())
+    X = np.array(r.truth["books"][0]["corners"])
+    u = geometry.project(sc.rig.Q_L, X)
+    for (x, y), (xh, yh) in zip(u, geometry.project(Q_half, X)):
+        # a blob at the full-resolution point, halved as the smooth map's images are
+        yy, xx = np.mgrid[:ideal["left"].shape[0], :ideal["left"].shape[1]]
+        blob = np.exp(-((xx - x) ** 2 + (yy - y) ** 2) / (2 * 3.0 ** 2)).astype(np.float32)
+        half = cv2.pyrDown(blob)
+        hy, hx = np.mgrid[:half.shape[0], :half.shape[1]]
+        centroid = np.array([(half * hx).sum(), (half * hy).sum()]) / half.sum()
+        np.testing.assert_allclose(centroid, [xh, yh], atol=0.02)  # half-size pixels
+
+
 def test_the_dense_map_reads_a_cover_without_print(desk_book):
     sc, r, ideal = desk_book
     rig = sc.rig
