@@ -56,33 +56,45 @@ def test_the_desk_plane_rejects_a_quad_at_the_wrong_depth(scene):
                            desk_plane=r.truth["desk_plane"])) == 1
 
 
-def _cover_image(quad, shape, rng, cover_texture=0.0, cover_grey=30.0):
+def _cover_image(quad, shape, rng, cover_texture=0.0, cover_grey=30.0, highlight=None):
     """A desk of grey 90 with a dark cover (grey 30, plus texture of this std) on it, and
-    sensor noise of 2.5 grey levels: a plain cover in dim light."""
+    sensor noise of 2.5 grey levels: a plain cover in dim light. ``highlight``: the share
+    of the way from corner 0 to corner 2 where a glossy cover's highlight (a bright blob
+    of a quarter of its width) lies."""
     import cv2
 
     img = np.full(shape, 90.0)
     inside = np.zeros(shape, np.uint8)
     cv2.fillConvexPoly(inside, np.rint(quad).astype(np.int32), 1)
     texture = cover_grey + cover_texture * rng.standard_normal(shape)
+    if highlight is not None:
+        x0, y0 = quad[0] + highlight * (quad[2] - quad[0])
+        yy, xx = np.mgrid[:shape[0], :shape[1]]
+        radius = 0.125 * np.linalg.norm(quad[1] - quad[0])
+        texture = texture + 200.0 * np.exp(-((xx - x0) ** 2 + (yy - y0) ** 2) / (2 * radius ** 2))
     img = np.where(inside > 0, texture, img) + 2.5 * rng.standard_normal(shape)
     return np.clip(img, 0, 255).astype(np.uint8)
 
 
-@pytest.mark.parametrize("right_texture, right_grey, matched",
-                         [(0.0, 30.0, True), (30.0, 30.0, False), (0.0, 70.0, False)])
-def test_two_plain_covers_match_despite_their_noise(scene, right_texture, right_grey, matched):
+@pytest.mark.parametrize("right_texture, right_grey, highlights, matched",
+                         [(0.0, 30.0, None, True), (30.0, 30.0, None, False),
+                          (0.0, 70.0, None, False), (0.0, 30.0, (0.3, 0.6), True),
+                          (30.0, 30.0, (0.3, 0.6), False), (0.0, 70.0, (0.3, 0.6), False)])
+def test_two_plain_covers_match_despite_their_noise(scene, right_texture, right_grey,
+                                                    highlights, matched):
     # what varies on a plain cover is noise, uncorrelated between the cameras: the
     # appearance test must not read it as two different covers (nor a plain one as a
-    # textured one, or as a plain one far brighter)
+    # textured one, or as a plain one far brighter); nor a glossy one's highlight, which
+    # lies elsewhere on the cover in each view
     sc, r = scene
     rig = sc.rig
     P = np.array(r.truth["books"][0]["corners"])
     left, right = _ideal(rig, P, rig.Q_L), _ideal(rig, P, rig.Q_R)
     shape = rig.image_size[::-1]
-    gray_l = _cover_image(left, shape, np.random.default_rng(1))
+    spot_l, spot_r = highlights or (None, None)
+    gray_l = _cover_image(left, shape, np.random.default_rng(1), highlight=spot_l)
     gray_r = _cover_image(right, shape, np.random.default_rng(2), cover_texture=right_texture,
-                          cover_grey=right_grey)
+                          cover_grey=right_grey, highlight=spot_r)
     found = match_quads(left[None], right[None], rig.Q_L, rig.Q_R,
                         desk_plane=r.truth["desk_plane"], gray_left=gray_l, gray_right=gray_r)
     assert (len(found) == 1) == matched
