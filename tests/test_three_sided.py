@@ -387,28 +387,3 @@ def test_a_cover_smaller_than_the_covers_bound_goes_to_stereo_only():
         c = _canonical(pool.corners).reshape(len(pool), 8)
         apart = np.abs(c[:, None] - c[None]).max(axis=2) + np.eye(len(pool)) * 1e9
         assert apart.min() > 3.0  # px
-
-
-def test_a_candidate_needs_every_side_mostly_in_view():
-    # a long thin quad with one corner 62 px left of the image: its side 3 is 17 % in view,
-    # its other sides fully. QuadConfig.min_in_view (0.6) holds for every side: none formed
-    from rovis.segment.lines import Lines
-    c = np.array([[-61.6, 132.2], [423.8, 52.7], [441.4, 103.6], [12.9, 337.9]])
-    edges = np.zeros((H, W), np.uint8)
-    rho, theta = [], []
-    for s in range(4):
-        a, b = c[s], c[(s + 1) % 4]
-        d = (b - a) / np.linalg.norm(b - a)
-        n = np.array([-d[1], d[0]])
-        t, r = np.arctan2(n[1], n[0]), a @ n
-        if t < 0:
-            t, r = t + np.pi, -r
-        rho.append(r)
-        theta.append(t)
-        cv2.line(edges, tuple(np.rint(a).astype(int)), tuple(np.rint(b).astype(int)), 255, 1)
-    lines = Lines(np.array(rho), np.array(theta), np.array([200, 190, 180, 170]))
-    profile = support_profile(lines, edges)
-    assert len(candidate_quads(lines, profile, (H, W), W * H * 4.0)) == 0
-    # ...and with a looser share, the same quad is formed
-    loose = QuadConfig(min_in_view=0.15)
-    assert _worst_to(candidate_quads(lines, profile, (H, W), W * H * 4.0, loose).corners, c) < 1.0
