@@ -67,7 +67,13 @@ def _cover_image(quad, shape, rng, cover_texture=0.0, cover_grey=30.0, highlight
     inside = np.zeros(shape, np.uint8)
     cv2.fillConvexPoly(inside, np.rint(quad).astype(np.int32), 1)
     texture = cover_grey + cover_texture * rng.standard_normal(shape)
-    if highlight is not None:
+    if highlight == "band":  # a darker title band across a fifth of the cover: another cover
+        inside_band = np.zeros(shape, np.uint8)
+        a, b = quad[0] + 0.4 * (quad[3] - quad[0]), quad[1] + 0.4 * (quad[2] - quad[1])
+        c, d = quad[1] + 0.6 * (quad[2] - quad[1]), quad[0] + 0.6 * (quad[3] - quad[0])
+        cv2.fillConvexPoly(inside_band, np.rint([a, b, c, d]).astype(np.int32), 1)
+        texture = np.where(inside_band > 0, texture - 25.0, texture)
+    elif highlight is not None:
         x0, y0 = quad[0] + highlight * (quad[2] - quad[0])
         yy, xx = np.mgrid[:shape[0], :shape[1]]
         radius = 0.125 * np.linalg.norm(quad[1] - quad[0])
@@ -79,7 +85,8 @@ def _cover_image(quad, shape, rng, cover_texture=0.0, cover_grey=30.0, highlight
 @pytest.mark.parametrize("right_texture, right_grey, highlights, matched",
                          [(0.0, 30.0, None, True), (30.0, 30.0, None, False),
                           (0.0, 70.0, None, False), (0.0, 30.0, (0.3, 0.6), True),
-                          (30.0, 30.0, (0.3, 0.6), False), (0.0, 70.0, (0.3, 0.6), False)])
+                          (30.0, 30.0, (0.3, 0.6), False), (0.0, 70.0, (0.3, 0.6), False),
+                          (0.0, 30.0, (0.3, "band"), False)])
 def test_two_plain_covers_match_despite_their_noise(scene, right_texture, right_grey,
                                                     highlights, matched):
     # what varies on a plain cover is noise, uncorrelated between the cameras: the
