@@ -202,6 +202,12 @@ def test_a_book_from_the_small_candidates_in_a_pass_of_their_own(book):
     assert all(k == 0 for _, k in refined)  # the small quad, after the empty pools
     det._from_pool(rig, both, grads, [], DESK, None, refined, extra="late")
     assert sorted({k for _, k in refined}) == [0, 1]  # the decoy refined at 1, not at 0
+    # a small quad is no partner in the late pass: the book's small quad in one image and
+    # its late one in the other make no pair there (nor in the small pass, without the late)
+    mixed = {"left": small["left"],
+             "right": replace(Segmentation.empty(100.0, 30), late_pool=_pool([quads["right"]]))}
+    assert det._from_pool(rig, mixed, grads, [], DESK, None, extra="late") == []
+    assert det._from_pool(rig, mixed, grads, [], DESK, None, extra="small") == []
 
 
 def test_a_pair_tilted_by_the_inward_cover_edge_search_is_refined_without_it(book, monkeypatch):

@@ -231,7 +231,7 @@ def smooth_height_map(left: NDArray[np.uint8], right: NDArray[np.uint8], Q_L: Ar
         The map over the halved left image, that image's projection (for
         :func:`raised_covers`) and the settings to cut covers from it with.
     """
-    # cv2.pyrDown blurs about every even pixel and keeps it: u' = u / 2 (until git 173c5d1
+    # cv2.pyrDown blurs about every even pixel and keeps it: u' = u / 2 (until git 20496f3
     # this read u' = (u - ½) / 2, half a full pixel off)
     S = np.diag([0.5, 0.5, 1.0])
     Q_L2, Q_R2 = S @ np.asarray(Q_L, np.float64), S @ np.asarray(Q_R, np.float64)

@@ -68,9 +68,9 @@ from rovis.undistort import IdealView
 # (a print on it).
 DROP_REASONS = ("degenerate", "too long", "too small", "tilted", "height", "side on desk",
                 "texture height", "skewed", "printed")
-# A frame's pool candidates refined (Detector._from_pool): (camera, index into the pool
-# and open pool concatenated, the late pool after them in the late pass) → corners with
-# and without the inward search, (4, 2) each.
+# A frame's pool candidates refined (Detector._from_pool): (camera, index into the pool,
+# open pool and small pool concatenated, the late pool after them in the late pass) →
+# corners with and without the inward search, (4, 2) each.
 Refined = dict[tuple[str, int], tuple[NDArray[np.float64], NDArray[np.float64]]]
 # The checks after which a pair is retried with the other quads the closed loop found over
 # it (Segmentation.alternatives): those an outline paired with a cover fails.

@@ -260,9 +260,9 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
     """Run Canny → Hough → quads at one T_H and pick T_HG (or use the one given).
 
     The inner loop is exact and cheap: one Hough pass at the lowest threshold gives every
-    line with its votes; a quad exists for every T_HG up to its weakest side's votes, and
-    an outline gives way to its nested covers up to theirs (:class:`CoverSelection`).
-    Between those breakpoints the covers stay the same and only N changes, falling as
+    line with its votes; a quad exists for every T_HG up to its weakest side's votes (an
+    outline gives way to its nested covers up to theirs, :class:`CoverSelection`: the same
+    breakpoints). Between those breakpoints the covers stay the same and only N changes, falling as
     T_HG rises: with e^{-N/N_max} y is highest at the top of each such interval, with the
     printed e^{+N/N_max} at its bottom (one above the next breakpoint down, or the lowest
     T_HG with N ≤ N_max). Only those T_HG are evaluated (at most ``cfg.max_inner``).
@@ -296,10 +296,9 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
     if T_HG is not None:
         candidates = [low]
     else:
-        # the T_HG at which the covers change: a quad appears at or below its votes, an
-        # outline at or above one more than its nested covers'
-        tops = ({int(v) for v in selection.votes if v >= low}
-                | {int(c) for c in selection.cover_votes if c >= low})
+        # the T_HG at which the covers change: a quad appears at or below its votes (an
+        # outline gives way up to its nested covers' votes, which are among them)
+        tops = {int(v) for v in selection.votes if v >= low}
         if cfg.quality_sign > 0:  # each interval's bottom: one above the top below it
             highest = max(tops, default=low)
             tops = {t + 1 for t in tops if t + 1 <= highest}

@@ -59,7 +59,7 @@ class CascadeController:
         area = roi_area(grad)
         seen: dict[float, Evaluation] = {}
         pool: list[Quads] = []  # every evaluation's candidates (Segmentation.pool)
-        smalls: list[Quads] = []  # and those under QuadConfig.min_area_px (late_pool)
+        smalls: list[Quads] = []  # and those under QuadConfig.min_area_px (small_pool)
 
         def run(log_T_H: float) -> Evaluation:
             lo, hi = np.log(self.cfg.T_H_range[0]), np.log(self.cfg.T_H_range[1])
@@ -69,7 +69,7 @@ class CascadeController:
                 if ev.selection is not None:
                     pool.append(candidate_pool([ev.selection.quads], self.cfg.pool_size))
                 if ev.small is not None and len(ev.small):
-                    smalls.append(ev.small)
+                    smalls.append(candidate_pool([ev.small], self.cfg.pool_size))
                 # an evaluation's candidates (megabytes on busy texture) serve only the
                 # optimum's alternatives: those of one below the best so far are let go
                 top = max(seen.values(), key=lambda e: e.y, default=None)
