@@ -19,8 +19,8 @@ from numpy.typing import NDArray
 from rovis.segment.edges import Gradients, canny
 from rovis.segment.lines import (Lines, SupportProfile, hough_lines, intersect, refine_lines,
                                  refine_segment, support_profile)
-from rovis.segment.quads import (CoverSelection, QuadConfig, Quads, _canonical, _corner_graph, _shoelace,
-                                 canonical_quads,
+from rovis.segment.quads import (CoverSelection, QuadConfig, Quads, _canonical, _corner_graph,
+                                 _shoelace, canonical_quads,
                                  _distinct, candidate_quads, opposite_sided_quads, order_corners,
                                  three_sided_quads, two_sided_quads)
 from rovis.segment.quality import PRINTED, quality
@@ -262,8 +262,8 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
     The inner loop is exact and cheap: one Hough pass at the lowest threshold gives every
     line with its votes; a quad exists for every T_HG up to its weakest side's votes (an
     outline gives way to its nested covers up to theirs, :class:`CoverSelection`: the same
-    breakpoints). Between those breakpoints the covers stay the same and only N changes, falling as
-    T_HG rises: with e^{-N/N_max} y is highest at the top of each such interval, with the
+    breakpoints). Between those breakpoints the covers stay the same and only N changes,
+    falling as T_HG rises: with e^{-N/N_max} y is highest at the top of each such interval, with the
     printed e^{+N/N_max} at its bottom (one above the next breakpoint down, or the lowest
     T_HG with N ≤ N_max). Only those T_HG are evaluated (at most ``cfg.max_inner``).
 
