@@ -174,9 +174,9 @@ def test_the_smooth_map_s_projection_is_where_pyrdown_puts_a_point(desk_book):
                                      desk, cfg=HeightMapConfig())
     X = np.array(r.truth["books"][0]["corners"])
     u = geometry.project(sc.rig.Q_L, X)
+    yy, xx = np.mgrid[:ideal["left"].shape[0], :ideal["left"].shape[1]]
     for (x, y), (xh, yh) in zip(u, geometry.project(Q_half, X)):
         # a blob at the full-resolution point, halved as the smooth map's images are
-        yy, xx = np.mgrid[:ideal["left"].shape[0], :ideal["left"].shape[1]]
         blob = np.exp(-((xx - x) ** 2 + (yy - y) ** 2) / (2 * 3.0 ** 2)).astype(np.float32)
         half = cv2.pyrDown(blob)
         hy, hx = np.mgrid[:half.shape[0], :half.shape[1]]

@@ -71,6 +71,18 @@ def _pool(quads):
                  np.arange(n, 0, -1).astype(np.float64) * 100, np.full(n, 50, np.int64))
 
 
+def _projected(rig, P):
+    """The world corners ``P`` (4, 3) in each ideal image."""
+    return {cam: geometry.project(Q, P) for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
+
+
+def _offered(quads, pool):
+    """Per camera, a segmentation whose only candidate is that camera's quad, in ``pool``
+    (a :class:`Segmentation` field: "pool", "open_pool", "late_pool", "small_pool")."""
+    return {cam: replace(Segmentation.empty(100.0, 30), **{pool: _pool([q])})
+            for cam, q in quads.items()}
+
+
 def test_pool_pairs_pairs_the_same_cover_in_both_images(book):
     P, _, rig = book
     decoy = _rectangle(center=(0.7, 0.5), size=(0.15, 0.10), z=0.02, yaw_deg=-30.0)
@@ -150,9 +162,8 @@ def test_without_the_desk_plane_the_pools_are_not_asked(book, monkeypatch):
 def test_a_book_from_the_three_sided_candidates(book):
     # the same cover offered only among the candidates with one side unseen
     P, grads, rig = book
-    quads = {cam: geometry.project(Q, P) for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
-    segs = {cam: replace(Segmentation.empty(100.0, 30), open_pool=_pool([q]))
-            for cam, q in quads.items()}
+    quads = _projected(rig, P)
+    segs = _offered(quads, "open_pool")
     found = Detector(rig, DetectConfig())._from_pool(rig, segs, grads, [], DESK, None)
     assert len(found) == 1
     assert np.linalg.norm(found[0][1].pose.center - P.mean(axis=0)) < 0.005  # metres
@@ -161,10 +172,9 @@ def test_a_book_from_the_three_sided_candidates(book):
 def test_a_book_from_the_late_candidates_only_when_they_are_asked(book):
     # the same cover offered only among the other T_H's candidates (Segmentation.late_pool)
     P, grads, rig = book
-    quads = {cam: geometry.project(Q, P) for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
+    quads = _projected(rig, P)
     det = Detector(rig, DetectConfig())
-    late = {cam: replace(Segmentation.empty(100.0, 30), late_pool=_pool([q]))
-            for cam, q in quads.items()}
+    late = _offered(quads, "late_pool")
     assert det._from_pool(rig, late, grads, [], DESK, None) == []  # not before the others
     found = det._from_pool(rig, late, grads, [], DESK, None, extra="late")
     assert len(found) == 1
@@ -174,8 +184,7 @@ def test_a_book_from_the_late_candidates_only_when_they_are_asked(book):
              "right": replace(Segmentation.empty(100.0, 30), pool=_pool([quads["right"]]))}
     assert len(det._from_pool(rig, mixed, grads, [], DESK, None, extra="late")) == 1
     # a pair of the earlier pools alone is not tried again
-    early = {cam: replace(Segmentation.empty(100.0, 30), pool=_pool([q]))
-             for cam, q in quads.items()}
+    early = _offered(quads, "pool")
     assert det._from_pool(rig, early, grads, [], DESK, None, extra="late") == []
 
 
@@ -183,10 +192,9 @@ def test_a_book_from_the_small_candidates_in_a_pass_of_their_own(book):
     # the same cover offered only among the candidates smaller than a cover of one image
     # (Segmentation.small_pool): paired in the "small" pass only, never in the late one
     P, grads, rig = book
-    quads = {cam: geometry.project(Q, P) for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
+    quads = _projected(rig, P)
     det = Detector(rig, DetectConfig())
-    small = {cam: replace(Segmentation.empty(100.0, 30), small_pool=_pool([q]))
-             for cam, q in quads.items()}
+    small = _offered(quads, "small_pool")
     assert det._from_pool(rig, small, grads, [], DESK, None) == []
     assert det._from_pool(rig, small, grads, [], DESK, None, extra="late") == []
     found = det._from_pool(rig, small, grads, [], DESK, None, extra="small")
@@ -195,8 +203,8 @@ def test_a_book_from_the_small_candidates_in_a_pass_of_their_own(book):
     # the small and the late pool in one segmentation: each refined quad cached by its
     # index is the one of its own pool (the late pass after the small one, one cache)
     decoy = _rectangle(center=(0.7, 0.5), size=(0.15, 0.10), z=0.02, yaw_deg=-30.0)
-    both = {cam: replace(small[cam], late_pool=_pool([geometry.project(Q, decoy)]))
-            for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
+    both = {cam: replace(small[cam], late_pool=_pool([q]))
+            for cam, q in _projected(rig, decoy).items()}
     refined: dict = {}
     assert len(det._from_pool(rig, both, grads, [], DESK, None, refined, extra="small")) == 1
     assert all(k == 0 for _, k in refined)  # the small quad, after the empty pools
@@ -217,7 +225,7 @@ def test_a_pair_tilted_by_the_inward_cover_edge_search_is_refined_without_it(boo
     # lines (1 cm higher): the pair is refined again without it.
     import rovis.pipeline as pipeline
     P, grads, rig = book
-    quads = {cam: geometry.project(Q, P) for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
+    quads = _projected(rig, P)
     segs = {cam: replace(Segmentation.empty(100.0, 30), pool=_pool([q]))
             for cam, q in quads.items()}
     refine = pipeline.refine_quad_both
@@ -267,7 +275,7 @@ def test_the_pairs_over_a_book_already_found_are_not_refined(book, monkeypatch):
     # passed over on their Hough quads, unrefined
     import rovis.pipeline as pipeline
     P, grads, rig = book
-    quads = {cam: geometry.project(Q, P) for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
+    quads = _projected(rig, P)
     segs = {cam: replace(Segmentation.empty(100.0, 30), pool=_pool([q, q + [1.0, 0.5]]))
             for cam, q in quads.items()}
     assert len(pool_pairs(segs["left"].pool.corners, segs["right"].pool.corners, rig.Q_L,
@@ -313,7 +321,7 @@ def test_a_late_pair_that_fits_no_rectangle_is_refused(book, monkeypatch):
     # off): no rectangle projects onto both quads, 1.5 px of mean reprojection error
     import rovis.pipeline as pipeline
     P, grads, rig = book
-    quads = {cam: geometry.project(Q, P) for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R))}
+    quads = _projected(rig, P)
     skewed = quads["right"].copy()
     skewed[np.argsort(skewed[:, 1])[2:], 1] += 6.0  # the two lowest corners in the image
     segs = {"left": replace(Segmentation.empty(100.0, 30), late_pool=_pool([quads["left"]])),

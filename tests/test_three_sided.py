@@ -372,7 +372,8 @@ def test_the_quad_stage_bounds_a_candidate_s_area_in_square_pixels():
 def test_a_cover_smaller_than_the_covers_bound_goes_to_stereo_only():
     # 80 x 50 px: 4000 px², under QuadConfig.min_area_px = 5000, over pool_min_area_px
     small = np.array([[300.0, 200.0], [380.0, 200.0], [380.0, 250.0], [300.0, 250.0]])
-    grad = gradients(_drawn((small,), 12, 2.0))
+    img = _drawn((small,), 12, 2.0)
+    grad = gradients(img)
     seg = CascadeController(SegmentConfig(), warm_start=False).segment(grad)
     assert _worst_to(seg.corners, small) > 10.0 and _worst_to(seg.pool.corners, small) > 10.0
     assert _worst_to(seg.small_pool.corners, small) < 1.5  # px, Hough corners
@@ -382,7 +383,7 @@ def test_a_cover_smaller_than_the_covers_bound_goes_to_stereo_only():
     # the most edge pixels first, from the one-evaluation methods too
     from rovis.segment.methods import segment
     for method in ("closed", "open"):
-        pool = segment(_drawn((small,), 12, 2.0), grad, method).small_pool
+        pool = segment(img, grad, method).small_pool
         assert len(pool) >= 1 and np.all(np.diff(pool.n_f) <= 0)
         c = _canonical(pool.corners).reshape(len(pool), 8)
         apart = np.abs(c[:, None] - c[None]).max(axis=2) + np.eye(len(pool)) * 1e9

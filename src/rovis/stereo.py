@@ -33,7 +33,7 @@ _PATCH = (48, 36)  # rectified cover patch, px
 _PLAIN_STD = 4.0  # grey levels: a cover patch varying less than this is plain
 _PLAIN_MEAN = 20.0  # grey levels: two plain patches this close in brightness look alike
 _HIGHLIGHT_NCC = 0.5  # two plain patches but for a highlight: above StereoConfig.min_ncc,
-# below what a printed cover's own pair scores
+# and in match_quads' cost still behind a pair whose print correlates better
 
 
 @dataclass(frozen=True)
