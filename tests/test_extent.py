@@ -188,6 +188,53 @@ def test_growth_stops_at_the_cover_edge_next_to_another_book(book_with_neighbour
     assert np.linalg.norm(got - P, axis=1).max() < 0.004
 
 
+def _faded(P, Q, grads, s):
+    """``grads`` with no gradient along the middle fifth of side s of P, 9 px wide (both
+    images): a picture cover's edge where the picture has the desk's tone. Of the 24
+    samples a side test reads (10-90 % of it), 62-67 % are left on the lone book's sides:
+    less than ``ExtentConfig.min_support``, more than ``weak_support``."""
+    a, b = P[s], P[(s + 1) % 4]
+    out = {}
+    for cam in Q:
+        ends = geometry.project(Q[cam], np.array([a + 0.4 * (b - a), a + 0.6 * (b - a)]))
+        mask = np.zeros(grads[cam].shape, np.uint8)
+        cv2.line(mask, *(tuple(int(v) for v in np.rint(q)) for q in ends), 255, 9)
+        keep = mask == 0
+        out[cam] = replace(grads[cam], dx=grads[cam].dx * keep, dy=grads[cam].dy * keep)
+    return out
+
+
+@pytest.mark.parametrize("weak_support, grows", [(0.5, True), (0.7, False)])
+def test_a_faint_cover_edge_that_stereo_places_is_grown_to(lone_book, weak_support, grows):
+    # side 0 runs steeply in the image (stereo places it to 2 mm); its middle faded, no
+    # move passes min_support: the cover cut 3 cm short grows back only on the faint edge
+    P, Q, grads, desk, _ = lone_book
+    faded = _faded(P, Q, grads, 0)
+    strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
+    short = _side_moved(P, 0, -0.03)
+    d = extent._grow_side(short, 0, Q, faded, {"left": strength, "right": strength},
+                          extent._drop(short, desk), ExtentConfig(weak_support=weak_support))
+    if grows:
+        assert d == pytest.approx(0.03, abs=0.002)
+    else:
+        assert d < 0.02  # (at most onto a line of the print; the plain cover has none)
+
+
+def test_a_faint_side_along_the_epipolar_lines_grows_only_where_the_maps_vouch(lone_book):
+    # side 1 runs near the image rows: stereo cannot place it, and a faint line in a
+    # cover's print would pass as well as the cover's edge
+    P, Q, grads, desk, _ = lone_book
+    faded = _faded(P, Q, grads, 1)
+    strength = {cam: CANNY_LOW_RATIO * SegmentConfig().open_T_H for cam in Q}
+    short = _side_moved(P, 1, -0.03)
+    drop = extent._drop(short, desk)
+    assert extent._grow_side(short, 1, Q, faded, strength, drop, ExtentConfig()) == 0.0
+    # (as the pipeline's grow by the height maps: as far as they carry the cover's height)
+    vouched = extent._grow_side(short, 1, Q, faded, strength, drop, ExtentConfig(),
+                                limit=0.04, continuation=0.5)
+    assert vouched == pytest.approx(0.03, abs=0.002)
+
+
 def test_detect_reports_the_lone_book_where_it_is(lone_book):
     P, _, _, _, rig = lone_book
     r, _, _, _ = _rendered([LONE_BOOK])

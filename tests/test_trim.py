@@ -245,6 +245,21 @@ def _end_in(truth, end, by):
     return short
 
 
+def _beyond(f, truth, end):
+    """A pair of another book over the outer 15 mm of cover ``truth``'s end (see
+    :func:`_end_in`) and 20 cm beyond: a strip grown over that end is partly its, not
+    the cover's, though the grown cover overlaps it by under a tenth."""
+    a, u = _long_axis(truth)
+    outward = u if end == 1 else -u
+    far = [a + 1, a + 2] if end == 1 else [a, (a + 3) % 4]
+    near = [a, (a + 3) % 4] if end == 1 else [a + 1, a + 2]
+    beyond = truth.copy()
+    beyond[near] = truth[far] - 0.015 * outward
+    beyond[far] = truth[far] + 0.20 * outward
+    return Pair(geometry.project(f.rig.Q_L, beyond), geometry.project(f.rig.Q_R, beyond),
+                1.0, 0.0)
+
+
 @pytest.mark.parametrize("end", [0, 1])
 def test_a_cover_cut_short_is_grown_to_its_end(book_scene, end):
     sc, r = book_scene
@@ -258,6 +273,11 @@ def test_a_cover_cut_short_is_grown_to_its_end(book_scene, end):
                              texture, maps)
     assert max(grown.pose.size[:2]) == pytest.approx(0.20, abs=0.004)  # m
     assert np.linalg.norm(grown.pose.center[:2] - np.asarray(sc.books[0].center)[:2]) < 0.004
+    # another book over the outer 15 mm of the cut-off end: not grown into
+    (_, kept), _ = det._grown(f.rig, res.segmentation, f.grads,
+                              [(pair, book), (_beyond(f, truth, end), book)], f.desk_plane,
+                              texture, maps)
+    assert kept is book
     # the whole cover stays as it is
     pair, book, _ = _book(det, f, truth, texture)
     (_, same), = det._grown(f.rig, res.segmentation, f.grads, [(pair, book)], f.desk_plane,
@@ -270,26 +290,16 @@ def test_a_cover_cut_short_is_grown_to_its_end_by_its_print(book_scene, end):
     sc, r = book_scene
     det, res, f, texture, _ = _frame(sc, r)
     truth = np.asarray(sc.books[0].corners)[:4]
-    a, u = _long_axis(truth)
     pair, book, why = _book(det, f, _end_in(truth, end, 0.04), texture)
     assert book is not None, why
     (_, grown), = det._grown_by_print(f.rig, res.segmentation, f.grads, [(pair, book)],
                                       f.desk_plane, texture)
     assert max(grown.pose.size[:2]) == pytest.approx(0.20, abs=0.004)  # m
     assert np.linalg.norm(grown.pose.center[:2] - np.asarray(sc.books[0].center)[:2]) < 0.004
-    # another book lies over the outer 15 mm of the cut-off end (and 20 cm beyond): the
-    # strip is partly its, not this cover's, though the grown cover would overlap it by
-    # under a tenth
-    outward = u if end == 1 else -u
-    far = [a + 1, a + 2] if end == 1 else [a, (a + 3) % 4]
-    near = [a, (a + 3) % 4] if end == 1 else [a + 1, a + 2]
-    beyond = truth.copy()
-    beyond[near] = truth[far] - 0.015 * outward
-    beyond[far] = truth[far] + 0.20 * outward
-    other = Pair(geometry.project(f.rig.Q_L, beyond), geometry.project(f.rig.Q_R, beyond),
-                 1.0, 0.0)
+    # another book over the outer 15 mm of the cut-off end
     (_, kept), _ = det._grown_by_print(f.rig, res.segmentation, f.grads,
-                                       [(pair, book), (other, book)], f.desk_plane, texture)
+                                       [(pair, book), (_beyond(f, truth, end), book)],
+                                       f.desk_plane, texture)
     assert kept is book
     # the whole cover stays as it is: beyond its sides the desk lines up lower
     pair, book, _ = _book(det, f, truth, texture)

@@ -69,6 +69,11 @@ class ExtentConfig:
     max_side: float = 0.45  # no book is larger (as DetectConfig.max_cover_side)
     reach: float = 0.01  # the neighbours' edges must reach the moved side: half of this
     min_support: float = 0.7  # of the samples, in both images: moved side and its neighbours
+    # ...or, where no move passes that, a moved side that is an edge along weak_support in
+    # both images (a picture cover's edge where the picture has the desk's tone), if stereo
+    # puts that edge within weak_height of the cover's height (_grow_side)
+    weak_support: float = 0.5
+    weak_height: float = 0.004
     max_angle_deg: float = 25.0  # gradient this close to across the line counts
     gap_edge_ratio: float = 0.35  # of a side's median edge strength: where its edge is missing
     height_check: bool = True  # stereo height of a moved side's edge: see _on_desk, _at_cover_height
@@ -293,7 +298,13 @@ def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]]
     (metres). ``continuation``: instead of both neighbouring sides carrying edges in both
     images (``cfg.min_support``, up to the moved side), each must in either image along
     this share of the way (:mod:`rovis.trim`'s grow, where the height map vouches for the
-    cover beyond the side)."""
+    cover beyond the side).
+
+    Where no move's side is an edge along ``cfg.min_support`` of it in both images, a move
+    whose side is along ``cfg.weak_support`` is taken: a picture cover's edge fades where the
+    picture has the desk's tone. Then, unless the maps vouch (``continuation``), stereo
+    must place that edge within ``cfg.weak_height`` of the cover's height, to that precision
+    (:func:`_edge_height`; never a side along the epipolar lines)."""
     a, b = s, (s + 1) % 4
     # Neighbouring sides' lengths bound the growth (no book is larger than max_side).
     room = min(limit, cfg.max_side - max(np.linalg.norm(P[a] - P[(a - 1) % 4]),
@@ -343,6 +354,10 @@ def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]]
         return 0.0
     idx = np.nonzero(ok)[0]  # the moved side itself only where its neighbours reach
     is_edge, strength_at = _side_scores(moved[idx], a, b, Q, grads, min_strength, cfg)
+    weak = not is_edge.any() and cfg.weak_support < cfg.min_support
+    if weak:  # no clear edge: a faint one, checked below
+        is_edge, strength_at = _side_scores(moved[idx], a, b, Q, grads, min_strength, cfg,
+                                            min_support=cfg.weak_support)
     ok[idx] = is_edge
     if not ok.any():
         return 0.0
@@ -354,7 +369,13 @@ def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]]
     first = last
     while first > 0 and ok[first - 1]:
         first -= 1
-    return _peak(d, strength, first, last, cfg.step)
+    move = _peak(d, strength, first, last, cfg.step)
+    if weak and continuation is None:  # a print's faint line beyond the cover is no edge
+        h = float(np.linalg.norm(drop))
+        z, sigma = _edge_height(_moved(P, s, np.array([move]))[0], s, Q, grads, -drop / h)
+        if not (sigma < cfg.weak_height and abs(z) < cfg.weak_height):
+            return 0.0
+    return move
 
 
 def _peak(d: NDArray[np.float64], strength: NDArray[np.float64], first: int, last: int,
@@ -429,9 +450,11 @@ def _shrink_side(P: NDArray[np.float64], s: int, runs: NDArray[np.float64],
 def _side_scores(moved: NDArray[np.float64], a: int, b: int, Q: dict[str, NDArray[np.float64]],
                  grads: dict[str, Gradients], min_strength: dict[str, float],
                  cfg: ExtentConfig, cams: tuple[str, ...] = ("left", "right"),
+                 min_support: float | None = None,
                  ) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
     """For each candidate (D, 4, 3), whether its side from corner ``a`` to ``b`` is an edge
-    in every image of ``cams`` (``min_support`` of 24 samples, ends trimmed), and its mean
+    in every image of ``cams`` (``min_support``, else ``cfg.min_support``, of 24 samples,
+    ends trimmed), and its mean
     gradient across, summed over those images in units of each image's threshold."""
     ok = np.ones(len(moved), bool)
     strength = np.zeros(len(moved))
@@ -443,7 +466,8 @@ def _side_scores(moved: NDArray[np.float64], a: int, b: int, Q: dict[str, NDArra
         pts = pa[:, None] + u[None, :, None] * (pb - pa)[:, None]  # (D, S, 2)
         edge, across = _edge(grads[cam], pa[:, None], pts, cfg.max_angle_deg,  # type: ignore[misc]
                              along=pb - pa, centre=True)
-        ok &= (edge >= thr).mean(axis=1) >= cfg.min_support
+        ok &= (edge >= thr).mean(axis=1) >= (cfg.min_support if min_support is None
+                                             else min_support)
         strength += across.mean(axis=1) / thr  # the mean gradient across, on the line itself
     return ok, strength
 

@@ -1374,8 +1374,11 @@ class Detector:
         title band, a frame of print inside the cover), that side moved out to the edge
         both images show within that run (:func:`rovis.trim.grow_run`,
         :class:`rovis.trim.TrimConfig`'s grow settings), guarded as
-        :meth:`_with_sides_grown` guards. The maps' own books are grown too (measured with
-        them)."""
+        :meth:`_with_sides_grown` guards, the strip added over no more than
+        ``trim.print_max_overlap`` of it of another book: a neighbour of the cover's height
+        carries the maps on, and a faint line in its print may pass for the cover's edge
+        (:func:`rovis.extent._grow_side`'s ``weak_support``). The maps' own books are grown
+        too (measured with them)."""
         cfg = self.cfg.trim
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         strength = self._edge_strength(segs)
@@ -1388,7 +1391,8 @@ class Detector:
             return _grow_side(P, s, Q, grads, strength, _drop(P, desk_plane), extent,
                               limit=limit + cfg.grow_margin, continuation=cfg.grow_continuation)
 
-        return self._with_sides_grown(rig, grads, strength, found, desk_plane, texture, move)
+        return self._with_sides_grown(rig, grads, strength, found, desk_plane, texture, move,
+                                      strip_overlap=cfg.print_max_overlap)
 
     def _grown_by_print(self, rig: StereoRig, segs: dict[str, Segmentation],
                         grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],

@@ -68,7 +68,10 @@ class TrimConfig:
     neighbouring sides must go on as an edge, in either image, along ``grow_continuation``
     of the way; with ``grow_foot``, where the new side's page block shows, its foot must be
     an edge in each image that shows it (a shadow's or the desk's line beyond the block has
-    no block of its own).
+    no block of its own); and the strip added may lie over another book by at most
+    ``print_max_overlap`` of it, as the grow by print's (the extent step's faint edges,
+    ``weak_support``, are taken here without stereo, and a neighbour of the cover's
+    height carries the maps on).
 
     The grow by print (``print_grow``, :func:`print_grow`), where the maps cannot tell (a
     thin book, a cover whose sides carry no edge beyond a band): a side moves out to an
