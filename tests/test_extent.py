@@ -394,6 +394,35 @@ def test_unseen_sides_are_placed_in_3d_where_both_images_show_an_edge(lone_book,
     assert np.ptp(got[:, 2]) < 1e-9
 
 
+def test_the_print_gives_the_height_where_the_seen_sides_give_none(lone_book):
+    # sides 1 and 3 run near the image rows: seen alone, stereo cannot place them, and the
+    # unseen ends (each guessed a centimetre off) go where the print puts the cover
+    P = lone_book[0]
+    left, right = _side_moved(P, 0, 0.012), _side_moved(P, 2, -0.010)
+    asked = []
+
+    def by_print(h):
+        def ask():
+            asked.append(h)
+            return h
+        return ask
+
+    got = _complete(P, left, right, (0, 2), lone_book, print_height=by_print(THICKNESS))
+    assert asked == [THICKNESS]
+    assert got is not None
+    assert np.linalg.norm(got - P, axis=1).max() < 0.004  # m
+    # a print at the desk's height (a sheet) is no cover
+    assert _complete(P, left, right, (0, 2), lone_book, height_range=(0.006, 0.1),
+                     print_height=by_print(0.0)) is None
+
+    def never():
+        raise AssertionError("the seen sides give the height: the print is not asked")
+
+    # seen sides 0 and 2 run steeply in the images: stereo places them
+    assert _complete(P, _side_moved(P, 1, 0.012), _side_moved(P, 3, -0.010), (1, 3),
+                     lone_book, print_height=never) is not None
+
+
 def test_no_edge_where_a_side_is_guessed_gives_no_cover(lone_book):
     P, Q, grads, desk, _ = lone_book
     # the far side guessed 6 cm out, on bare desk: nothing within the search shows a step

@@ -10,8 +10,8 @@ import pytest
 from rovis import geometry
 from rovis.pipeline import DetectConfig, Detector, Pair, with_settings
 from rovis.segment import gradients
-from rovis.sweep import (SweepConfig, contradicts, find_by_print, high_pass, on_plane, sweep_heights,
-                         texture_height)
+from rovis.sweep import (SweepConfig, contradicts, find_by_print, high_pass, on_plane,
+                         print_goes_on, print_height, sweep_heights, texture_height)
 from rovis.synth import render, sample_scene
 
 from conftest import ideal_images
@@ -153,6 +153,33 @@ def test_a_quad_stopping_inside_the_print_is_not_placed(scene):
     P = np.array(_book(r, "photo")["corners"], dtype=np.float64)
     P[2:] += 0.03 * (P[1] - P[2]) / np.linalg.norm(P[1] - P[2])
     assert _find_by_print(scene, P) is None
+
+
+def _print_test(scene, P, test, *args, **kw):
+    sc, r, _, texture = scene
+    return test(texture["left"], texture["right"], sc.rig.Q_L, sc.rig.Q_R,
+                geometry.project(sc.rig.Q_L, P), r.truth["desk_plane"], *args, **kw)
+
+
+def test_the_print_height_is_the_photo_covers_and_none_for_a_plain_one(scene):
+    _, r, _, _ = scene
+    photo, plain = _book(r, "photo"), _book(r, "plain")
+    h = _print_test(scene, np.array(photo["corners"]), print_height)
+    assert h is not None and abs(h - photo["size"][2]) < 0.001  # metres
+    assert _print_test(scene, np.array(plain["corners"]), print_height) is None
+
+
+def test_the_print_goes_on_beyond_a_side_cut_short_only(scene):
+    _, r, _, _ = scene
+    b = _book(r, "photo")
+    P = np.array(b["corners"], dtype=np.float64)
+    h = b["size"][2]
+    assert not _print_test(scene, P, print_goes_on, h)
+    cut = P.copy()  # side 2 (P3-P4) 3 cm in
+    cut[2:] += 0.03 * (P[1] - P[2]) / np.linalg.norm(P[1] - P[2])
+    assert _print_test(scene, cut, print_goes_on, h)
+    assert _print_test(scene, cut, print_goes_on, h, sides=[2])
+    assert not _print_test(scene, cut, print_goes_on, h, sides=[0, 1, 3])
 
 
 @pytest.mark.parametrize("bad", [{"coarse_step": 0.0}, {"step": 0.01}, {"max_samples": 40000},

@@ -52,7 +52,7 @@ from rovis.trim import (TrimConfig, cut_cover, grow_run, height_profile, map_hei
 from rovis.stereo import (Match, StereoConfig, _point_segment_distance, find_in_other_view,
                           flat_rectangle, match_quads, pool_pairs)
 from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pass, on_plane,
-                         sweep_heights, texture_height)
+                         print_goes_on, print_height, sweep_heights, texture_height)
 from rovis.undistort import IdealView
 
 
@@ -982,6 +982,15 @@ class Detector:
             if not completable(a):
                 return False
             shift = int(pp.shift[a])
+            asked: list[float | None] = []  # the print's height, where complete_open asks
+
+            def by_print() -> float | None:
+                # the candidate's guessed sides may be off: the sweep's inset spares them
+                assert texture is not None
+                asked.append(print_height(texture["left"], texture["right"], rig.Q_L, rig.Q_R,
+                                          pool["left"].corners[i[a]], desk_plane, cfg.sweep))
+                return asked[-1]
+
             P = complete_open(
                 {"left": pool["left"].corners[i[a]],
                  "right": np.roll(pool["right"].corners[j[a]], -shift, axis=0)},
@@ -990,10 +999,16 @@ class Detector:
                 height_range=(cfg.stereo.min_height, cfg.stereo.max_cover_height),
                 side_range=(0.8 * cfg.min_cover_side, cfg.max_cover_side),
                 fits={"left": fits_of("left", int(i[a])),
-                      "right": [fits_of("right", int(j[a]))[(s + shift) % 4] for s in range(4)]})
+                      "right": [fits_of("right", int(j[a]))[(s + shift) % 4] for s in range(4)]},
+                print_height=None if texture is None else by_print)
             if P is None or not flat(geometry.project(rig.Q_L, P)[None],
                                      geometry.project(rig.Q_R, P)[None])[0]:
                 return False
+            if asked and asked[0] is not None and print_goes_on(
+                    texture["left"], texture["right"], rig.Q_L, rig.Q_R,
+                    geometry.project(rig.Q_L, P), desk_plane, asked[0], cfg.sweep,
+                    sides=np.flatnonzero(~(seen(a)["left"] | seen(a)["right"])).tolist()):
+                return False  # an unseen side placed on a band of the print
             if texture is not None and self._print_on_desk(rig, geometry.project(rig.Q_L, P),
                                                            desk_plane, texture):
                 return False

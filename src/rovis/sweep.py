@@ -26,6 +26,7 @@ did not (:func:`find_by_print`), where the edge-based one-image search of
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -243,19 +244,47 @@ def find_by_print(tex_src: NDArray[np.float32], tex_dst: NDArray[np.float32], Q_
     ndarray, shape (4, 2) or None
         The cover's corners in the other image (same order), ideal pixels.
     """
-    sweep, _ = texture_height(tex_src, tex_dst, Q_src, Q_dst, quad_src, desk_plane, float("nan"), cfg)
+    h = print_height(tex_src, tex_dst, Q_src, Q_dst, quad_src, desk_plane, cfg)
+    if h is None or h < min_height or print_goes_on(tex_src, tex_dst, Q_src, Q_dst, quad_src,
+                                                    desk_plane, h, cfg):
+        return None
+    return geometry.project(Q_dst, on_plane(Q_src, quad_src, desk_plane, h))
+
+
+def print_goes_on(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: ArrayLike,
+                  Q_R: ArrayLike, quad_left: ArrayLike, desk_plane: ArrayLike, height: float,
+                  cfg: SweepConfig = SweepConfig(), sides: Sequence[int] = range(4)) -> bool:
+    """Whether the print of the cover ``quad_left`` at ``height`` (metres above the desk)
+    goes on beyond one of its ``sides`` (side s from corner s to s + 1): the strip
+    ``cfg.strip_px`` outside it matches at that height (NCC ≥ ``cfg.strip_min_ncc``)
+    better than on the desk by ``cfg.min_gap``. Such a side is a print's edge inside the
+    cover (a title band, a printed block), not the cover's; but so is the side next to a
+    taller book, whose page block rises through every lower height. Arguments as
+    :func:`sweep_heights`."""
+    for side in sides:
+        ncc = side_strip_ncc(left, right, Q_L, Q_R, quad_left, desk_plane, [height, 0.0], side,
+                             near_px=cfg.strip_px[0], far_px=cfg.strip_px[1])
+        if ncc is not None and ncc[0] >= cfg.strip_min_ncc and ncc[0] - ncc[1] > cfg.min_gap:
+            return True
+    return False
+
+
+def print_height(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: ArrayLike,
+                 Q_R: ArrayLike, quad_left: ArrayLike, desk_plane: ArrayLike,
+                 cfg: SweepConfig = SweepConfig()) -> float | None:
+    """The height above the desk (metres) at which the print inside ``quad_left`` matches
+    between the images, or None where it does not tell: the sweep's best NCC
+    (:func:`texture_height`) must reach ``cfg.min_ncc_to_move`` and beat every height
+    ``cfg.peak_apart`` or more away by ``cfg.min_gap`` (a print repeating along the
+    epipolar lines would match at several). Arguments as :func:`sweep_heights`."""
+    sweep, _ = texture_height(left, right, Q_L, Q_R, quad_left, desk_plane, float("nan"), cfg)
     if sweep is None or sweep.best_ncc < cfg.min_ncc_to_move:
         return None
     h = sweep.best_height
     apart = np.abs(sweep.heights - h) >= cfg.peak_apart
-    if h < min_height or (apart.any() and sweep.ncc[apart].max() > sweep.best_ncc - cfg.min_gap):
+    if apart.any() and sweep.ncc[apart].max() > sweep.best_ncc - cfg.min_gap:
         return None
-    for side in range(4):
-        ncc = side_strip_ncc(tex_src, tex_dst, Q_src, Q_dst, quad_src, desk_plane, [h, 0.0], side,
-                             near_px=cfg.strip_px[0], far_px=cfg.strip_px[1])
-        if ncc is not None and ncc[0] >= cfg.strip_min_ncc and ncc[0] - ncc[1] > cfg.min_gap:
-            return None  # the print goes on beyond this side, at the cover's height
-    return geometry.project(Q_dst, on_plane(Q_src, quad_src, desk_plane, h))
+    return h
 
 
 def side_strip_ncc(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: ArrayLike,
@@ -376,5 +405,5 @@ def contradicts(sweep: Sweep | None, ncc_at_corners: float, cfg: SweepConfig = S
 
 
 __all__ = ["SweepConfig", "Sweep", "find_by_print", "high_pass", "on_plane", "plane_homography",
-           "side_strip_ncc", "sweep_heights",
+           "print_goes_on", "print_height", "side_strip_ncc", "sweep_heights",
            "texture_height", "contradicts"]
