@@ -246,6 +246,41 @@ def test_a_pair_tilted_by_the_inward_cover_edge_search_is_refined_without_it(boo
     assert abs(found[0][1].pose.size[2] - 0.03) < 0.004  # metres: flat at its true height
 
 
+@pytest.mark.parametrize("refits", [20, 0])
+def test_a_pair_no_flat_cover_with_every_side_seen_is_refit_flat(book, monkeypatch, refits):
+    # Far from the camera a pixel of disparity is centimetres of height, and a cover's
+    # refined corners come out tilted. Here the right image's near corners, refined, are
+    # 0.8 px off along the epipolar lines and its far ones 0.8 px the other way (a few
+    # millimetres of height), and the tilt allowed is 0.5°: no flat cover, and no side
+    # unseen to complete. Refit as one rectangle parallel to the desk (within
+    # DetectConfig.flat_refit_px of both images' corners), the book is found.
+    import rovis.pipeline as pipeline
+    P, grads, rig = book
+    refine = pipeline.refine_quad_both
+
+    def tilted(grad, corners, **kw):
+        out = refine(grad, corners, **kw)
+        if grad is not grads["right"]:
+            return out
+        moved = [q.copy() for q in out]
+        for q in moved:
+            rows = np.argsort(q[:, 1])
+            q[rows[2:]] += [0.8, 0.0]
+            q[rows[:2]] -= [0.8, 0.0]
+        return tuple(moved)
+
+    monkeypatch.setattr(pipeline, "refine_quad_both", tilted)
+    cfg = DetectConfig(max_tilt_deg=0.5)
+    cfg = replace(cfg, stereo=replace(cfg.stereo, pool_flat_refits=refits))
+    found = Detector(rig, cfg)._from_pool(rig, _offered(_projected(rig, P), "pool"), grads, [],
+                                          DESK, None)
+    assert len(found) == (1 if refits else 0)
+    if refits:
+        book = found[0][1]
+        assert abs(book.pose.size[2] - 0.03) < 0.004  # metres
+        assert np.linalg.norm(np.asarray(book.pose.center[:2]) - P.mean(axis=0)[:2]) < 0.005
+
+
 def test_only_the_pairs_closest_to_their_epipolar_segments_are_refined(book, monkeypatch):
     # busy texture gives thousands of pairs of candidates: StereoConfig.pool_max_pairs
     # bounds the refinement to those the epipolar geometry fits best

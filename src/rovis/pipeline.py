@@ -844,7 +844,9 @@ class Detector:
         unseen in either image (a two-sided candidate) must also show a step along each
         refined side in both images and have its corners at one height. A pair with a side
         neither image saw that fails those tests is completed in 3D instead
-        (:func:`rovis.extent.complete_open`), after every pair that refined flat.
+        (:func:`rovis.extent.complete_open`), after every pair that refined flat; one with
+        every side seen is refit as one rectangle parallel to the desk (as
+        :meth:`_flat_refit`, at most ``stereo.pool_flat_refits`` per pass), after those.
         """
         cfg = self.cfg
         overlap = cfg.stereo.transfer_max_overlap
@@ -934,6 +936,12 @@ class Detector:
         # book an earlier pair gave, and are passed over on their Hough quads alone.
         left, right = np.zeros((len(i), 4, 2)), np.zeros((len(i), 4, 2))
         ok, settled = np.zeros(len(i), bool), np.zeros(len(i), bool)
+        # A pair with every side seen that is no flat cover, refined, and no completion
+        # either: far from the camera a pixel of disparity is 2 cm, and its corners come out
+        # 1-3 cm apart in height (build/t1b scene 23's 13 mm book, 1.3 m away: 4-14 mm).
+        # Refit as one rectangle parallel to the desk (as _flat_refit), it is taken last.
+        as_flat: dict[int, Pair] = {}
+        flat_tries = cfg.stereo.pool_flat_refits if cfg.flat_refit_px > 0 else 0
         as_refined = np.zeros((len(i), 4, 2))  # the left quads as refined (what a union is of)
 
         def settle(index: NDArray[np.intp]) -> None:
@@ -954,6 +962,15 @@ class Detector:
                 better = flat(l2, r2)
                 l1[retry[better]], r1[retry[better]] = l2[better], r2[better]
                 good[retry[better]] = True
+            nonlocal flat_tries
+            for k in np.flatnonzero(~good):
+                if flat_tries <= 0:
+                    break
+                if not completable(int(index[k])):
+                    flat_tries -= 1
+                    refit = self._flat_refit(rig, Pair(l1[k], r1[k], 1.0, 0.0), desk_plane, None)
+                    if refit is not None:
+                        as_flat[int(index[k])] = refit[0]
             left[index], right[index], ok[index], settled[index] = l1, r1, good, True
             as_refined[index] = l1
 
@@ -1096,6 +1113,10 @@ class Detector:
                 deferred.append(a)
         for a in deferred:  # then the pairs to complete in 3D, in the same order
             consider(a)
+        for a in order.tolist():  # then those refit flat: a refit pair may be a cover in
+            if a in as_flat:      # one image and its outline in the other, too high
+                left[a], right[a], ok[a] = as_flat[a].left, as_flat[a].right, True
+                consider(a)
         return out
 
     def _from_pool_one_image(self, rig: StereoRig, segs: dict[str, Segmentation],

@@ -78,6 +78,11 @@ class StereoConfig:
     pool: bool = True
     pool_max_pairs: int = 300  # refined per frame, the smallest epipolar error first
     small_max_pairs: int = 20  # ...in the pass of the small candidates (Segmentation.small_pool)
+    # A pair that refines to no flat cover and has every side seen in one image or the
+    # other is refit as one rectangle parallel to the desk (as DetectConfig.flat_refit_px);
+    # taken last in its pass, after the completions. At most this many per pass, the most
+    # edge pixels first (each is a least-squares fit)
+    pool_flat_refits: int = 20
     # Where no book is yet, last, a candidate quad of one image (Segmentation.pool) looked
     # for in the other (find_in_other_view) where, refined, its own image shows its sides:
     # every side's step along pool_transfer_seen of it (rovis.segment.boundary.side_evidence),
