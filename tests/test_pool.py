@@ -246,16 +246,11 @@ def test_a_pair_tilted_by_the_inward_cover_edge_search_is_refined_without_it(boo
     assert abs(found[0][1].pose.size[2] - 0.03) < 0.004  # metres: flat at its true height
 
 
-@pytest.mark.parametrize("refits", [20, 0])
-def test_a_pair_no_flat_cover_with_every_side_seen_is_refit_flat(book, monkeypatch, refits):
-    # Far from the camera a pixel of disparity is centimetres of height, and a cover's
-    # refined corners come out tilted. Here the right image's near corners, refined, are
-    # 0.8 px off along the epipolar lines and its far ones 0.8 px the other way (a few
-    # millimetres of height), and the tilt allowed is 0.5°: no flat cover, and no side
-    # unseen to complete. Refit as one rectangle parallel to the desk (within
-    # DetectConfig.flat_refit_px of both images' corners), the book is found.
+def _tilted_right(monkeypatch, grads):
+    """Make the right image's refined quads (both ways) 0.8 px off along the epipolar
+    lines at the near corners and 0.8 px the other way at the far ones: far from the
+    camera, a few millimetres of height that tilt the cover."""
     import rovis.pipeline as pipeline
-    P, grads, rig = book
     refine = pipeline.refine_quad_both
 
     def tilted(grad, corners, **kw):
@@ -270,6 +265,17 @@ def test_a_pair_no_flat_cover_with_every_side_seen_is_refit_flat(book, monkeypat
         return tuple(moved)
 
     monkeypatch.setattr(pipeline, "refine_quad_both", tilted)
+
+
+@pytest.mark.parametrize("refits", [20, 0])
+def test_a_pair_no_flat_cover_with_every_side_seen_is_refit_flat(book, monkeypatch, refits):
+    # Far from the camera a pixel of disparity is centimetres of height, and a cover's
+    # refined corners come out tilted. Here the right image's are (_tilted_right), and the
+    # tilt allowed is 0.5°: no flat cover, and no side unseen to complete. Refit as one
+    # rectangle parallel to the desk (within DetectConfig.flat_refit_px of both images'
+    # corners), the book is found.
+    P, grads, rig = book
+    _tilted_right(monkeypatch, grads)
     cfg = DetectConfig(max_tilt_deg=0.5)
     cfg = replace(cfg, stereo=replace(cfg.stereo, pool_flat_refits=refits))
     found = Detector(rig, cfg)._from_pool(rig, _offered(_projected(rig, P), "pool"), grads, [],
@@ -279,6 +285,22 @@ def test_a_pair_no_flat_cover_with_every_side_seen_is_refit_flat(book, monkeypat
         book = found[0][1]
         assert abs(book.pose.size[2] - 0.03) < 0.004  # metres
         assert np.linalg.norm(np.asarray(book.pose.center[:2]) - P.mean(axis=0)[:2]) < 0.005
+
+
+def test_a_pair_with_a_side_unseen_is_never_refit_flat(book, monkeypatch):
+    # as above, but the far side is unseen in both images and completion is off: the
+    # guessed side is no evidence to fit a rectangle to
+    from rovis.extent import CompleteConfig
+    P, grads, rig = book
+    _tilted_right(monkeypatch, grads)
+    segs = _offered(_projected(rig, P), "open_pool")
+    for seg in segs.values():
+        seg.open_pool.lines[:, 2] = -1  # (a side no Hough line gave)
+    cfg = DetectConfig(max_tilt_deg=0.5, complete=CompleteConfig(enabled=False))
+    assert Detector(rig, cfg)._from_pool(rig, segs, grads, [], DESK, None) == []
+    # every side seen: refit
+    segs = _offered(_projected(rig, P), "open_pool")
+    assert len(Detector(rig, cfg)._from_pool(rig, segs, grads, [], DESK, None)) == 1
 
 
 def test_only_the_pairs_closest_to_their_epipolar_segments_are_refined(book, monkeypatch):

@@ -278,6 +278,7 @@ def test_a_cover_cut_short_is_grown_to_its_end(book_scene, end):
                               [(pair, book), (_beyond(f, truth, end), book)], f.desk_plane,
                               texture, maps)
     assert kept is book
+    assert max(kept.pose.size[:2]) == pytest.approx(0.16, abs=0.005)  # m
     # the whole cover stays as it is
     pair, book, _ = _book(det, f, truth, texture)
     (_, same), = det._grown(f.rig, res.segmentation, f.grads, [(pair, book)], f.desk_plane,

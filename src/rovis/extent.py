@@ -373,6 +373,8 @@ def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]]
     move = _peak(d, strength, first, last, cfg.step)
     if weak and continuation is None:  # a print's faint line beyond the cover is no edge
         h = float(np.linalg.norm(drop))
+        if h <= 0.0:  # a cover on the desk: no up from its drop
+            return 0.0
         z, sigma = _edge_height(_moved(P, s, np.array([move]))[0], s, Q, grads, -drop / h)
         if not (sigma < cfg.weak_height and abs(z) < cfg.weak_height):
             return 0.0
@@ -956,11 +958,12 @@ def complete_open(corners: dict[str, NDArray[np.float64]], seen: dict[str, NDArr
         placed = _place(h, corners, fits, Q, grads, strength, desk_plane, cfg, side_range)
         return None if placed is None else placed[0]
     # Two opposite sides along the epipolar lines (stereo cannot place them), their ends
-    # where each image's edges happen to stop: no height. The unseen sides, across the
-    # epipolar lines, tell it: the height whose rectangle has the strongest unseen sides,
-    # every cfg.height_step over the range, then every quarter of that around the best.
-    # from the desk up: a sheet on the desk must come out there, not at the lowest height
-    # a cover may have
+    # where each image's edges happen to stop: no height. The cover's print tells it where
+    # it can (then the unseen sides are placed there, or nowhere: no sweep after it).
+    # Else the unseen sides, across the epipolar lines: the height whose rectangle has the
+    # strongest unseen sides, every cfg.height_step over the range, then every quarter of
+    # that around the best, from the desk up: a sheet on the desk must come out there, not
+    # at the lowest height a cover may have
     lo, hi = 0.0, min(height_range[1], cfg.max_height)
     h = None if print_height is None else print_height()
     if h is not None:

@@ -936,12 +936,6 @@ class Detector:
         # book an earlier pair gave, and are passed over on their Hough quads alone.
         left, right = np.zeros((len(i), 4, 2)), np.zeros((len(i), 4, 2))
         ok, settled = np.zeros(len(i), bool), np.zeros(len(i), bool)
-        # A pair with every side seen that is no flat cover, refined, and no completion
-        # either: far from the camera a pixel of disparity is 2 cm, and its corners come out
-        # 1-3 cm apart in height (build/t1b scene 23's 13 mm book, 1.3 m away: 4-14 mm).
-        # Refit as one rectangle parallel to the desk (as _flat_refit), it is taken last.
-        as_flat: dict[int, Pair] = {}
-        flat_tries = cfg.stereo.pool_flat_refits if cfg.flat_refit_px > 0 else 0
         as_refined = np.zeros((len(i), 4, 2))  # the left quads as refined (what a union is of)
 
         def settle(index: NDArray[np.intp]) -> None:
@@ -962,15 +956,6 @@ class Detector:
                 better = flat(l2, r2)
                 l1[retry[better]], r1[retry[better]] = l2[better], r2[better]
                 good[retry[better]] = True
-            nonlocal flat_tries
-            for k in np.flatnonzero(~good):
-                if flat_tries <= 0:
-                    break
-                if not completable(int(index[k])):
-                    flat_tries -= 1
-                    refit = self._flat_refit(rig, Pair(l1[k], r1[k], 1.0, 0.0), desk_plane, None)
-                    if refit is not None:
-                        as_flat[int(index[k])] = refit[0]
             left[index], right[index], ok[index], settled[index] = l1, r1, good, True
             as_refined[index] = l1
 
@@ -991,9 +976,12 @@ class Detector:
             return {"left": pool["left"].lines[i[a]] >= 0,
                     "right": np.roll(pool["right"].lines[j[a]] >= 0, -int(pp.shift[a]))}
 
-        def completable(a: int) -> bool:  # a side neither image saw
+        def all_seen(a: int) -> bool:  # every side seen in one image or the other
             sides = seen(a)
-            return cfg.complete.enabled and not bool(np.all(sides["left"] | sides["right"]))
+            return bool(np.all(sides["left"] | sides["right"]))
+
+        def completable(a: int) -> bool:  # a side neither image saw
+            return cfg.complete.enabled and not all_seen(a)
 
         def complete(a: int) -> bool:
             if not completable(a):
@@ -1021,7 +1009,7 @@ class Detector:
             if P is None or not flat(geometry.project(rig.Q_L, P)[None],
                                      geometry.project(rig.Q_R, P)[None])[0]:
                 return False
-            if asked and asked[0] is not None and print_goes_on(
+            if texture is not None and asked and asked[0] is not None and print_goes_on(
                     texture["left"], texture["right"], rig.Q_L, rig.Q_R,
                     geometry.project(rig.Q_L, P), desk_plane, asked[0], cfg.sweep,
                     sides=np.flatnonzero(~(seen(a)["left"] | seen(a)["right"])).tolist()):
@@ -1103,6 +1091,7 @@ class Detector:
             out.append((pair, book))
 
         deferred: list[int] = []
+        unflat: list[int] = []
         for a in order.tolist():  # the flat pairs, as their turn comes
             if over_found(a):
                 continue
@@ -1111,11 +1100,27 @@ class Detector:
                 consider(a)
             elif completable(a):
                 deferred.append(a)
+            elif all_seen(a):
+                unflat.append(a)
         for a in deferred:  # then the pairs to complete in 3D, in the same order
             consider(a)
-        for a in order.tolist():  # then those refit flat: a refit pair may be a cover in
-            if a in as_flat:      # one image and its outline in the other, too high
-                left[a], right[a], ok[a] = as_flat[a].left, as_flat[a].right, True
+        # Last, the pairs with every side seen that refined to no flat cover: far from the
+        # camera a pixel of disparity is 2 cm, and the corners come out 1-3 cm apart in
+        # height (build/t1b scene 23's 13 mm book, 1.3 m away: 4-14 mm). Each is refit as
+        # one rectangle parallel to the desk (as _flat_refit; a least-squares fit and the
+        # pose checks, so at most stereo.pool_flat_refits of them, of those still free).
+        # After the completions: a refit pair may be a cover in one image and its outline
+        # in the other, made flat too high.
+        tries = cfg.stereo.pool_flat_refits if cfg.flat_refit_px > 0 else 0
+        for a in unflat:
+            if tries <= 0:
+                break
+            if over_found(a) or not free(a):
+                continue
+            tries -= 1
+            refit = self._flat_refit(rig, Pair(left[a], right[a], 1.0, 0.0), desk_plane, None)
+            if refit is not None:
+                left[a], right[a], ok[a] = refit[0].left, refit[0].right, True
                 consider(a)
         return out
 

@@ -81,7 +81,8 @@ class StereoConfig:
     # A pair that refines to no flat cover and has every side seen in one image or the
     # other is refit as one rectangle parallel to the desk (as DetectConfig.flat_refit_px);
     # taken last in its pass, after the completions. At most this many per pass, the most
-    # edge pixels first (each is a least-squares fit)
+    # edge pixels first, of those over no book found by then (each is a least-squares fit
+    # and the pose checks)
     pool_flat_refits: int = 20
     # Where no book is yet, last, a candidate quad of one image (Segmentation.pool) looked
     # for in the other (find_in_other_view) where, refined, its own image shows its sides:
