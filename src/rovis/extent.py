@@ -457,8 +457,8 @@ def _side_scores(moved: NDArray[np.float64], a: int, b: int, Q: dict[str, NDArra
                  ) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
     """For each candidate (D, 4, 3), whether its side from corner ``a`` to ``b`` is an edge
     in every image of ``cams`` (``min_support``, else ``cfg.min_support``, of 24 samples,
-    ends trimmed), and its mean
-    gradient across, summed over those images in units of each image's threshold."""
+    ends trimmed), and its mean gradient across, summed over those images in units of each
+    image's threshold."""
     ok = np.ones(len(moved), bool)
     strength = np.zeros(len(moved))
     u = np.linspace(0.1, 0.9, 24)

@@ -258,8 +258,9 @@ def print_goes_on(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Ar
     goes on beyond one of its ``sides`` (side s from corner s to s + 1): the strip
     ``cfg.strip_px`` outside it matches at that height (NCC ≥ ``cfg.strip_min_ncc``)
     better than on the desk by ``cfg.min_gap``. Such a side is a print's edge inside the
-    cover (a title band, a printed block), not the cover's; but so is the side next to a
-    taller book, whose page block rises through every lower height. Arguments as
+    cover (a title band, a printed block), not the cover's. The strip beyond a cover's own
+    side next to a taller book matches too (that book's page block rises through every
+    lower height): ``sides`` leaves out the sides that may lie there. Arguments as
     :func:`sweep_heights`."""
     for side in sides:
         ncc = side_strip_ncc(left, right, Q_L, Q_R, quad_left, desk_plane, [height, 0.0], side,
