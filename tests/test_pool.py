@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from rovis import geometry
-from rovis.pipeline import DetectConfig, Detector, _is_union, with_settings
+from rovis.pipeline import DetectConfig, Detector, Pair, _is_union, _skew_deg, with_settings
 from rovis.segment import gradients
 from rovis.segment.boundary import Segmentation
 from rovis.segment.quads import Quads, order_corners
@@ -389,3 +389,36 @@ def test_a_late_pair_that_fits_no_rectangle_is_refused(book, monkeypatch):
     loose = with_settings(DetectConfig(), ["stereo.late_max_reprojection_px=3"])
     kept = Detector(rig, loose)._from_pool(rig, segs, grads, [], DESK, None, extra="late")
     assert len(kept) == 1 and 1.0 < kept[0][1].reprojection_error_px <= 3.0
+
+
+def test_skew_names_each_corner_off_a_right_angle():
+    good = _rectangle(yaw_deg=0.0)
+    assert np.all(_skew_deg(good) < 1e-6)
+    cut = good.copy()  # corner 2 slid 4 cm along side 1 towards corner 1: side 2 a diagonal
+    cut[2] += 0.04 * (good[1] - good[2]) / np.linalg.norm(good[1] - good[2])
+    off = _skew_deg(cut)
+    assert off[0] < 1e-6 and off[1] < 1e-6  # corners 0 and 1 keep their right angles
+    expected = np.degrees(np.arctan2(0.04, np.linalg.norm(good[3] - good[2])))
+    np.testing.assert_allclose(off[2:], expected, atol=1e-6)  # both ends of side 2
+
+
+@pytest.mark.parametrize("cut_mm", [30.0, 40.0])
+def test_a_cover_with_a_side_on_a_diagonal_is_completed_to_its_rectangle(book, cut_mm):
+    P, grads, rig = book
+    cut = P.copy()  # the quad a printed diagonal would give: corner 2 slid along side 1
+    cut[2] += cut_mm / 1000 * (P[1] - P[2]) / np.linalg.norm(P[1] - P[2])
+    det = Detector(rig, DetectConfig())
+    pair, before, why = det._reconstruct_or_why(
+        rig, Pair(geometry.project(rig.Q_L, cut), geometry.project(rig.Q_R, cut), 1.0, 0.0),
+        DESK, None)
+    assert why == "" and np.linalg.norm(before.pose.center - P.mean(axis=0)) > 0.005
+    segs = {cam: Segmentation.empty(100.0, 30) for cam in ("left", "right")}
+    [(_, after)] = det._unskewed(rig, segs, grads, [(pair, before)], DESK, None)
+    # each true corner within 3 mm of one of the completed cover's
+    d = np.linalg.norm(after.corners_world[:, None] - P[None], axis=2)
+    assert d.min(axis=0).max() < 0.003
+    # a rectangle is left as it is
+    good, fine, _ = det._reconstruct_or_why(rig, Pair(*_projected(rig, P).values(), 1.0, 0.0),
+                                            DESK, None)
+    [(same, kept)] = det._unskewed(rig, segs, grads, [(good, fine)], DESK, None)
+    assert same is good and kept is fine

@@ -73,7 +73,8 @@ def bench_triangulation(n_points: int = 1_000_000, *, repeats: int = 7,
 # --------------------------------------------------------------------------- the pipeline
 
 PIPELINE_STAGES = ("marker", "undistort", "gradients", "segmentation", "stereo", "pose", "heightmap",
-                   "dense", "side_height", "extent", "split", "trim", "join", "track")
+                   "dense", "unskew", "side_height", "extent", "split", "trim", "join",
+                   "track")
 SEGMENTATION_STEPS = ("canny", "hough", "quads", "three_sided", "two_sided", "refine", "lsd")  # parts of "segmentation"
 
 

@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 from rovis import geometry, marker
 from rovis.calib import StereoRig
 from rovis.extent import (CompleteConfig, ExtentConfig, FacingConfig, SideHeightConfig,
-                          _drop, _foot_is_edge, _grow_side, _moved, _on_desk, _side_scores,
+                          _drop, _foot_is_edge, _grow_side, _moved, _on_desk, _side_scores, _unit,
                           complete_open, fit_pair_extent, height_from_sides, lift_foot,
                           settle_facing_sides)
 from rovis.heightmap import (HeightMap, HeightMapConfig, Rectification, dense_height_map,
@@ -123,6 +123,12 @@ class DetectConfig:
         Pixels; 0 turns it off. A stereo pair that comes out tilted or with a side on the
         desk is refit as one rectangle parallel to the desk, kept where every corner of
         both images lies within this of it (beyond the paper; needs the desk plane).
+    unskew_deg, unskew_height : float
+        Degrees (0 turns it off), metres. A cover whose corners make an angle further than
+        ``unskew_deg`` from 90° has a side on a line of its print or a neighbour's edge:
+        that side is placed again in 3D as one neither image saw, the cover kept within
+        ``unskew_height`` of its height (:meth:`Detector._unskewed`; beyond the paper;
+        needs the desk plane).
     segment, stereo, extent, complete, facing, sweep, side_height
         :class:`SegmentConfig`, :class:`StereoConfig`, :class:`ExtentConfig`,
         :class:`CompleteConfig`, :class:`FacingConfig`, :class:`SweepConfig`,
@@ -165,6 +171,8 @@ class DetectConfig:
     fit_rectangle: bool = False
     lift_foot: bool = True
     flat_refit_px: float = 1.0
+    unskew_deg: float = 8.0
+    unskew_height: float = 0.01
     full_view: bool = True
     segment: SegmentConfig = field(default_factory=SegmentConfig)
     stereo: StereoConfig = field(default_factory=StereoConfig)
@@ -463,6 +471,10 @@ class Detector:
             warnings.append(f"{len(dropped)} stereo pair(s) of quads dropped: no flat, book-sized "
                             "cover on the desk ("
                             + ", ".join(f"{why}: {n}" for why, n in count.most_common()) + ")")
+        # beyond the paper: a cover that is no rectangle, its worst side placed again
+        if self.cfg.unskew_deg > 0 and desk_plane is not None:
+            found = self._unskewed(rig, segs, grads, found, desk_plane, texture)
+            lap("unskew")
         # beyond the paper: each cover at the height its sides' edges give, then its sides
         # moved to its edges, seen in both images
         if self.cfg.side_height.enabled and desk_plane is not None:
@@ -1749,6 +1761,54 @@ class Detector:
             out.append((pair, book))
         return out
 
+    def _unskewed(self, rig: StereoRig, segs: dict[str, Segmentation],
+                  grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
+                  desk_plane: NDArray[np.float64],
+                  texture: dict[str, NDArray[np.float32]] | None,
+                  ) -> list[tuple[Pair, BookDetection]]:
+        """Each book whose cover corners make an angle further than ``unskew_deg`` from 90°
+        with its worst side placed again (beyond the paper).
+
+        A cover is a rectangle; a quad with one side on a printed diagonal, or on a
+        neighbour's edge, is none, and nothing else checks a segmented pair's angles. The
+        side between the two worst angles is taken for unseen and placed in 3D from the
+        other three (:func:`rovis.extent.complete_open`: a step in both images within
+        ``complete.search`` of where it was); the completed cover must pass the pose
+        checks again and stay within ``unskew_height`` of the cover's height (a side on a
+        taller neighbour's edge, or its print, gives that neighbour's height). Where that
+        fails, the book stays as it was."""
+        cfg = self.cfg
+        Q = {"left": rig.Q_L, "right": rig.Q_R}
+        strength = self._edge_strength(segs)
+        out = []
+        for pair, book in found:
+            off = _skew_deg(book.corners_world)  # at corner k, between sides k - 1 and k
+            if off.max() <= cfg.unskew_deg:
+                out.append((pair, book))
+                continue
+            s = int(np.argmax(off + np.roll(off, -1)))  # side s joins corners s and s + 1
+            corners = {"left": pair.left, "right": pair.right}
+            h = float(book.pose.size[2])
+            # the other sides stay where they were refined (a refit without the inward
+            # search would take the page block's edge below a side facing the camera)
+            fits = {cam: [None if k == s else (q[k], _unit(q[(k + 1) % 4] - q[k]))
+                          for k in range(4)] for cam, q in corners.items()}
+            P = complete_open(corners, {cam: np.arange(4) != s for cam in Q}, Q, grads,
+                              strength, desk_plane, cfg.complete,
+                              height_range=(max(cfg.stereo.min_height, h - cfg.unskew_height),
+                                            min(cfg.stereo.max_cover_height,
+                                                h + cfg.unskew_height)),
+                              side_range=(0.8 * cfg.min_cover_side, cfg.max_cover_side),
+                              fits=fits)
+            if P is not None:
+                trial, fitted, _ = self._reconstruct_or_why(rig, _pair_at(rig, pair, P),
+                                                            desk_plane, texture)
+                # (its print's height test may move it: to a taller neighbour's print)
+                if fitted is not None and abs(float(fitted.pose.size[2]) - h) <= cfg.unskew_height:
+                    pair, book = trial, fitted
+            out.append((pair, book))
+        return out
+
     def _with_flat_refits(self, rig: StereoRig,
                           books: list[tuple[Pair, BookDetection | None, str]],
                           desk_plane: NDArray[np.float64] | None,
@@ -2145,6 +2205,15 @@ def _is_union(a: int, quads: NDArray[np.float64], area: NDArray[np.float64],
         if not any(quad_overlap(quads[b], quads[k]) > max_overlap for k in kept):
             kept.append(b)
     return len(kept) >= 2 and float(area[kept].sum()) >= fill * area[a]
+
+
+def _skew_deg(P: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(4,): how far each corner's angle of a quad of world corners ``P`` (4, 3) lies from
+    90° (degrees), corner k between side k - 1 and side k."""
+    side = np.roll(P, -1, axis=0) - P
+    unit = side / np.maximum(np.linalg.norm(side, axis=1, keepdims=True), 1e-12)
+    cos = np.abs(np.sum(unit * np.roll(unit, 1, axis=0), axis=1))
+    return np.degrees(np.arcsin(np.clip(cos, 0.0, 1.0)))
 
 
 def _tilt_deg(pose: geometry.BookPose, desk_plane: NDArray[np.float64] | None) -> float:
