@@ -64,8 +64,8 @@ from rovis.undistort import IdealView
 # among the alternatives, lower than any book) or more than StereoConfig.max_height above
 # it; a side lies on the desk; its print matches between the images at another height
 # than its corners (rovis.sweep); without the desk plane, a cover found in one image only
-# whose corners make no rectangle in 3D, or a rectangle inside a larger cover, in its plane
-# (a print on it).
+# whose corners make no rectangle in 3D (with it, one with no corner near a right angle:
+# Detector._unskewed), or a rectangle inside a larger cover, in its plane (a print on it).
 DROP_REASONS = ("degenerate", "too long", "too small", "tilted", "height", "side on desk",
                 "texture height", "skewed", "printed")
 # A frame's pool candidates refined (Detector._from_pool): (camera, index into the pool,
@@ -473,7 +473,11 @@ class Detector:
                             + ", ".join(f"{why}: {n}" for why, n in count.most_common()) + ")")
         # beyond the paper: a cover that is no rectangle, its worst side placed again
         if self.cfg.unskew_deg > 0 and desk_plane is not None:
-            found = self._unskewed(rig, segs, grads, found, desk_plane, texture)
+            found, skewed = self._unskewed(rig, segs, grads, found, desk_plane, texture)
+            if skewed:
+                dropped += skewed
+                warnings.append(f"{len(skewed)} cover(s) with no right angle dropped: no book "
+                                "(a parallelogram of lines)")
             lap("unskew")
         # beyond the paper: each cover at the height its sides' edges give, then its sides
         # moved to its edges, seen in both images
@@ -1765,9 +1769,11 @@ class Detector:
                   grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
                   desk_plane: NDArray[np.float64],
                   texture: dict[str, NDArray[np.float32]] | None,
-                  ) -> list[tuple[Pair, BookDetection]]:
+                  ) -> tuple[list[tuple[Pair, BookDetection]],
+                             list[tuple[str, NDArray[np.float64], NDArray[np.float64]]]]:
         """Each book whose cover corners make an angle further than ``unskew_deg`` from 90°
-        with its worst side placed again (beyond the paper).
+        with its worst side placed again, and those with no angle within it as dropped
+        pairs (``"skewed"``, left corners, right corners; beyond the paper).
 
         A cover is a rectangle; a quad with one side on a printed diagonal, or on a
         neighbour's edge, is none, and nothing else checks a segmented pair's angles. The
@@ -1776,11 +1782,12 @@ class Detector:
         ``complete.search`` of where it was); the completed cover must pass the pose
         checks again and stay within ``unskew_height`` of the cover's height (a side on a
         taller neighbour's edge, or its print, gives that neighbour's height). Where that
-        fails, the book stays as it was."""
+        fails, the book stays as it was; one with every angle still that far off is a
+        parallelogram of lines, no book (build/t2 scene 38: 43–45° off, a false positive)."""
         cfg = self.cfg
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         strength = self._edge_strength(segs)
-        out = []
+        out, skewed = [], []
         for pair, book in found:
             off = _skew_deg(book.corners_world)  # at corner k, between sides k - 1 and k
             if off.max() <= cfg.unskew_deg:
@@ -1806,8 +1813,11 @@ class Detector:
                 # (its print's height test may move it: to a taller neighbour's print)
                 if fitted is not None and abs(float(fitted.pose.size[2]) - h) <= cfg.unskew_height:
                     pair, book = trial, fitted
-            out.append((pair, book))
-        return out
+            if _skew_deg(book.corners_world).min() > cfg.unskew_deg:
+                skewed.append(("skewed", pair.left, pair.right))
+            else:
+                out.append((pair, book))
+        return out, skewed
 
     def _with_flat_refits(self, rig: StereoRig,
                           books: list[tuple[Pair, BookDetection | None, str]],
