@@ -402,16 +402,18 @@ def test_skew_names_each_corner_off_a_right_angle():
     np.testing.assert_allclose(off[2:], expected, atol=1e-6)  # both ends of side 2
 
 
-@pytest.mark.parametrize("cut_mm", [30.0, 40.0])
-def test_a_cover_with_a_side_on_a_diagonal_is_completed_to_its_rectangle(book, cut_mm):
+@pytest.mark.parametrize("side, cut_mm", [(0, 40.0), (1, 40.0), (2, 30.0), (2, 40.0), (3, 40.0)])
+def test_a_cover_with_a_side_on_a_diagonal_is_completed_to_its_rectangle(book, side, cut_mm):
     P, grads, rig = book
-    cut = P.copy()  # the quad a printed diagonal would give: corner 2 slid along side 1
-    cut[2] += cut_mm / 1000 * (P[1] - P[2]) / np.linalg.norm(P[1] - P[2])
+    cut = P.copy()  # the quad a printed diagonal gives: corner `side` slid along side - 1
+    back = P[side - 1] - P[side]
+    cut[side] += cut_mm / 1000 * back / np.linalg.norm(back)
+    assert np.argmax(_skew_deg(cut) + np.roll(_skew_deg(cut), -1)) == side
     det = Detector(rig, DetectConfig())
     pair, before, why = det._reconstruct_or_why(
         rig, Pair(geometry.project(rig.Q_L, cut), geometry.project(rig.Q_R, cut), 1.0, 0.0),
         DESK, None)
-    assert why == "" and np.linalg.norm(before.pose.center - P.mean(axis=0)) > 0.005
+    assert why == "" and np.linalg.norm(before.pose.center - P.mean(axis=0)) > 0.004
     segs = {cam: Segmentation.empty(100.0, 30) for cam in ("left", "right")}
     [(_, after)], dropped = det._unskewed(rig, segs, grads, [(pair, before)], DESK, None)
     assert dropped == []
@@ -423,12 +425,23 @@ def test_a_cover_with_a_side_on_a_diagonal_is_completed_to_its_rectangle(book, c
                                             DESK, None)
     [(same, kept)], _ = det._unskewed(rig, segs, grads, [(good, fine)], DESK, None)
     assert same is good and kept is fine
+    # no height allowed to change: the cut cover stays as it was (skewed, not dropped: one
+    # side alone makes it no rectangle)
+    det.cfg = replace(det.cfg, unskew_height=0.0)
+    [(same, kept)], dropped = det._unskewed(rig, segs, grads, [(pair, before)], DESK, None)
+    assert same is pair and kept is before and dropped == []
+
+
+def test_a_side_of_no_length_makes_no_right_angle():
+    P = _rectangle()
+    P[2] = P[1]  # side 1 collapsed: corners 1 and 2 make no angle
+    np.testing.assert_allclose(_skew_deg(P)[[1, 2]], 90.0)
 
 
 def test_a_parallelogram_with_no_right_angle_is_dropped(book):
     P, grads, rig = book
-    # lines crossing on the bare desk, beside the book: every angle 12.8° off 90°, and no
-    # edge for a side to be placed on again
+    # lines crossing 3 cm above the bare desk, beside the book: every angle 12.8° off
+    # 90°, and no edge for a side to be placed on again
     slid = P + [0.25, 0.15, 0.0]
     along = (P[1] - P[0]) / np.linalg.norm(P[1] - P[0])
     slid[2:] += 0.05 * along

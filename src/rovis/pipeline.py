@@ -126,9 +126,10 @@ class DetectConfig:
     unskew_deg, unskew_height : float
         Degrees (0 turns it off), metres. A cover whose corners make an angle further than
         ``unskew_deg`` from 90° has a side on a line of its print or a neighbour's edge:
-        that side is placed again in 3D as one neither image saw, the cover kept within
-        ``unskew_height`` of its height (:meth:`Detector._unskewed`; beyond the paper;
-        needs the desk plane).
+        the cover is laid again from its other three sides, that one taken for unseen, and
+        kept within ``unskew_height`` of its height; one with every angle still that far
+        off is dropped (``"skewed"``; :meth:`Detector._unskewed`; beyond the paper; needs
+        the desk plane).
     segment, stereo, extent, complete, facing, sweep, side_height
         :class:`SegmentConfig`, :class:`StereoConfig`, :class:`ExtentConfig`,
         :class:`CompleteConfig`, :class:`FacingConfig`, :class:`SweepConfig`,
@@ -476,8 +477,8 @@ class Detector:
             found, skewed = self._unskewed(rig, segs, grads, found, desk_plane, texture)
             if skewed:
                 dropped += skewed
-                warnings.append(f"{len(skewed)} cover(s) with no right angle dropped: no book "
-                                "(a parallelogram of lines)")
+                warnings.append(f"{len(skewed)} cover(s) with no right angle dropped (skewed): "
+                                "no book (a parallelogram of lines)")
             lap("unskew")
         # beyond the paper: each cover at the height its sides' edges give, then its sides
         # moved to its edges, seen in both images
@@ -1772,14 +1773,15 @@ class Detector:
                   ) -> tuple[list[tuple[Pair, BookDetection]],
                              list[tuple[str, NDArray[np.float64], NDArray[np.float64]]]]:
         """Each book whose cover corners make an angle further than ``unskew_deg`` from 90°
-        with its worst side placed again, and those with no angle within it as dropped
+        laid again without its worst side, and those with no angle within it as dropped
         pairs (``"skewed"``, left corners, right corners; beyond the paper).
 
         A cover is a rectangle; a quad with one side on a printed diagonal, or on a
         neighbour's edge, is none, and nothing else checks a segmented pair's angles. The
-        side between the two worst angles is taken for unseen and placed in 3D from the
-        other three (:func:`rovis.extent.complete_open`: a step in both images within
-        ``complete.search`` of where it was); the completed cover must pass the pose
+        side between the two worst angles is taken for unseen and the cover laid again as
+        a rectangle parallel to the desk, its height and axes from the other three sides
+        (:func:`rovis.extent.complete_open`; the unseen side where both images show a step
+        within ``complete.search`` of where it was); the completed cover must pass the pose
         checks again and stay within ``unskew_height`` of the cover's height (a side on a
         taller neighbour's edge, or its print, gives that neighbour's height). Where that
         fails, the book stays as it was; one with every angle still that far off is a
@@ -2221,8 +2223,12 @@ def _skew_deg(P: NDArray[np.float64]) -> NDArray[np.float64]:
     """(4,): how far each corner's angle of a quad of world corners ``P`` (4, 3) lies from
     90° (degrees), corner k between side k - 1 and side k."""
     side = np.roll(P, -1, axis=0) - P
-    unit = side / np.maximum(np.linalg.norm(side, axis=1, keepdims=True), 1e-12)
+    length = np.linalg.norm(side, axis=1, keepdims=True)
+    unit = side / np.maximum(length, 1e-12)
     cos = np.abs(np.sum(unit * np.roll(unit, 1, axis=0), axis=1))
+    # a side of no length makes no angle: 90° off at both its ends (no rectangle)
+    short = length[:, 0] < 1e-9
+    cos[short | np.roll(short, 1)] = 1.0
     return np.degrees(np.arcsin(np.clip(cos, 0.0, 1.0)))
 
 
