@@ -472,7 +472,8 @@ class Detector:
             warnings.append(f"{len(dropped)} stereo pair(s) of quads dropped: no flat, book-sized "
                             "cover on the desk ("
                             + ", ".join(f"{why}: {n}" for why, n in count.most_common()) + ")")
-        # beyond the paper: a cover that is no rectangle, its worst side placed again
+        # beyond the paper: a cover that is no rectangle laid again from its three best
+        # sides, or dropped where no corner is near a right angle
         if self.cfg.unskew_deg > 0 and desk_plane is not None:
             found, skewed = self._unskewed(rig, segs, grads, found, desk_plane, texture)
             if skewed:
