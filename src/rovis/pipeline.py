@@ -1799,8 +1799,9 @@ class Detector:
             s = int(np.argmax(off + np.roll(off, -1)))  # side s joins corners s and s + 1
             corners = {"left": pair.left, "right": pair.right}
             h = float(book.pose.size[2])
-            # the other sides stay where they were refined (a refit without the inward
-            # search would take the page block's edge below a side facing the camera)
+            # the other sides stay where they were refined (refit here, without the
+            # segmentation's inward search, tests/test_pool.py's book's two sides facing
+            # the camera moved 1-2 px off their edges: corners up to 5 mm off)
             fits = {cam: [None if k == s else (q[k], _unit(q[(k + 1) % 4] - q[k]))
                           for k in range(4)] for cam, q in corners.items()}
             P = complete_open(corners, {cam: np.arange(4) != s for cam in Q}, Q, grads,
