@@ -25,7 +25,7 @@ third cue tells them apart where their widths differ or they lie offset across t
 
 - *the jog*: a side the seam cuts is one straight edge on one book, but two on two books
   of different widths, the second stopping a few millimetres short of the first's line
-  (:func:`_jog_at`): read along the side, the edge breaks from one straight line onto
+  (:func:`_jogs_at`): read along the side, the edge breaks from one straight line onto
   another, by as much and the same way in both images, where the books meet.
 
 Two books of one height and one width laid flush and aligned are not told apart, nor are
@@ -71,12 +71,14 @@ class SplitConfig:
     round) are laid at the heights that split them, their sides but the seam moved onto the
     edges both images show within ``lay_reach`` (the detector's split step).
 
-    With ``jog``, where no seam's sides step in height, a side across the seams that does
-    not face the camera and jogs splits the cover at the strongest seam line within
-    ``agree`` of the jog (:func:`_jog_at`): the side's edge, read within ``jog_reach_px``
-    of it, breaks from one straight line onto another, ``min_jog_px`` or more off, the
-    same way in both images and within ``jog_agree_px`` of each other, within ``agree`` of
-    each other along the cover, each part about ``min_part`` long or more.
+    With ``jog``, where no seam's sides step in height, a side across the seams that jogs
+    splits the cover at the strongest seam line within ``agree`` of the jog
+    (:func:`_jogs_at`): the side's edge, read within ``jog_reach_px`` of it, breaks from
+    one straight line onto another, ``min_jog_px`` or more off, the same way in both
+    images and within ``jog_agree_px`` of each other, within ``agree`` of each other along
+    the cover, each part about ``min_part`` long or more. Every jog is tried, the largest
+    first. ``jog_facing``: a side facing the camera is read too (its page block's edges
+    below it mostly break onto no straight line, but a clean jog there is a seam).
 
     The reverse (:func:`join_halves`, with ``join``): two books whose mean heights lie
     within ``join_step`` of each other, sharing a whole side (both its ends within
@@ -103,7 +105,8 @@ class SplitConfig:
     join_step: float = 0.003
     join_angle_deg: float = 8.0
     jog: bool = True
-    min_jog_px: float = 2.5
+    min_jog_px: float = 2.0  # build/t1b's scene 6: 2.35 and 2.97 px (docs/stereo.md)
+    jog_facing: bool = True
     jog_agree_px: float = 1.0
     jog_reach_px: float = 6.0
 
@@ -179,7 +182,7 @@ class Split(NamedTuple):
     seams : (int, int)
         Per part, the index of its side on the seam (side s runs from corner s to s + 1).
     by_step : bool
-        Split by the step in height (else by the jog, :func:`_jog_at`).
+        Split by the step in height (else by the jog, :func:`_jogs_at`).
     """
 
     parts: Parts
@@ -200,8 +203,7 @@ def split_union(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np
     on either side; each image's seam line is fitted to its edge (:func:`refine_segment`)
     and cut by the other two sides for the parts' corners. The strongest seam where those
     sides step in height by ``cfg.min_step`` or more (see the module's notes) gives the
-    parts; failing that (with ``cfg.jog``), the seam where a side that does not face the
-    camera jogs (:func:`_jog_at`).
+    parts; failing that (with ``cfg.jog``), the seam where a side jogs (:func:`_jogs_at`).
 
     Parameters
     ----------
@@ -231,8 +233,8 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
                         desk_plane: NDArray[np.float64], cfg: SplitConfig = SplitConfig(), *,
                         down: tuple[float, float] = (0.0, 1.0)) -> Split | None:
     """:func:`split_union`, with what placed the parts (:class:`Split`). Where no seam's
-    sides step in height, the seam where a side jogs most (``cfg.jog``, :func:`_jog_at`)
-    splits the cover.
+    sides step in height, the seam where a side jogs (``cfg.jog``, :func:`_jogs_at`; the
+    largest jog whose seam shows in both images) splits the cover.
 
     Parameters are :func:`split_union`'s.
     """
@@ -275,18 +277,20 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
                 return Split(parts, heights, ((k + 2) % 4, k), True)
     if not cfg.jog:
         return None
-    # no step in height: the side that jogs most places the seam, at the strongest seam
-    # line within ``agree`` of the jog in the left image, the right's nearest it
+    # no step in height: a side's jog places the seam, at the strongest seam line within
+    # ``agree`` of the jog in the left image, the right's nearest it; the largest jog
+    # first (build/t1c's scene 27: one side's larger jog lies near a corner, the other
+    # side's at the seam)
     jogged = []
     w = max(int(round(cfg.agree / cfg.step)), 0)
     for k, (t, found) in profiles.items():
         if not all(np.any(share >= cfg.min_share) for share, _ in found.values()):
             continue  # no seam line in an image: nothing to cut at
-        jog = _jog_at(corners, k, grads, cfg, tol=cfg.agree / spans[k], down=down)
         # each part about ``min_part`` long or more: a neighbour's edge near a corner is
         # no jog (``t`` spans the cover's middle, less ``min_part`` at either end)
-        if jog is not None and all(t[0] <= v <= t[-1] for v in jog[1].values()):
-            jogged.append((jog[0], k, jog[1]))
+        jogged += [(size, k, where) for size, where in
+                   _jogs_at(corners, k, grads, cfg, tol=cfg.agree / spans[k], down=down)
+                   if all(t[0] <= v <= t[-1] for v in where.values())]
     for _, k, where in sorted(jogged, key=lambda item: -item[0]):
         t, found = profiles[k]
         (share_l, off_l), (share_r, off_r) = found["left"], found["right"]
@@ -455,13 +459,13 @@ def _step_in_height(corners: dict[str, NDArray[np.float64]], parts: Parts, k: in
     return float(near), float(far)
 
 
-def _jog_at(corners: dict[str, NDArray[np.float64]], k: int, grads: dict[str, Gradients],
-            cfg: SplitConfig, *, tol: float, down: tuple[float, float],
-            ) -> tuple[float, dict[str, float]] | None:
-    """Where a side across the seams of axis ``k`` (``k + 1`` or ``k + 3``), not facing the
-    camera, jogs in both images: the jog (px, the smaller image's) and per camera the point
+def _jogs_at(corners: dict[str, NDArray[np.float64]], k: int, grads: dict[str, Gradients],
+             cfg: SplitConfig, *, tol: float, down: tuple[float, float],
+             ) -> list[tuple[float, dict[str, float]]]:
+    """Where each side across the seams of axis ``k`` (``k + 1`` and ``k + 3``) jogs in both
+    images: per side that does, the jog (px, the smaller image's) and per camera the point
     as :func:`seam_profile`'s ``t`` (the fraction of the way from side ``k`` to side
-    ``k + 2`` along the side), or None where neither side does.
+    ``k + 2`` along the side).
 
     One book's side is one straight edge, whatever is printed across the cover; two
     touching books of different widths, or laid offset across the seam, show one edge
@@ -471,12 +475,12 @@ def _jog_at(corners: dict[str, NDArray[np.float64]], k: int, grads: dict[str, Gr
     (:func:`_step_along`), it jogs. It counts where the second line lies ``cfg.min_jog_px``
     or more off the first there, the same way in both images and within
     ``cfg.jog_agree_px`` of each other, at points within ``tol`` (a fraction of the way)
-    of each other. A side facing the camera is not asked: its page block shows several
-    edges below it. The larger jog of the two sides wins.
+    of each other. A side facing the camera is asked only with ``cfg.jog_facing``: its
+    page block shows several edges below it, which seldom make two clean runs.
     """
-    best: tuple[float, dict[str, float]] | None = None
+    found: list[tuple[float, dict[str, float]]] = []
     for s in ((k + 1) % 4, (k + 3) % 4):
-        if _faces_camera(corners, s, down):
+        if not cfg.jog_facing and _faces_camera(corners, s, down):
             continue
         jogs, where = [], {}
         for cam, c in corners.items():
@@ -495,10 +499,9 @@ def _jog_at(corners: dict[str, NDArray[np.float64]], k: int, grads: dict[str, Gr
             continue
         jog = min(abs(j) for j in jogs)
         if jog >= cfg.min_jog_px and len({np.sign(j) for j in jogs}) == 1 \
-                and np.ptp(jogs) <= cfg.jog_agree_px and np.ptp(list(where.values())) <= tol \
-                and (best is None or jog > best[0]):
-            best = (jog, where)
-    return best
+                and np.ptp(jogs) <= cfg.jog_agree_px and np.ptp(list(where.values())) <= tol:
+            found.append((jog, where))
+    return found
 
 
 def _edge_offsets(grad: Gradients, a: NDArray[np.float64], b: NDArray[np.float64],
