@@ -506,6 +506,7 @@ def test_the_inner_loop_finds_the_best_hough_threshold_exactly(monkeypatch, sign
     monkeypatch.setattr(B, "hough_lines", lambda *a, **k: lines)
     monkeypatch.setattr(B, "support_profile", lambda *a, **k: None)
     monkeypatch.setattr(B, "refine_lines", lambda ln, e, p, *a, **k: (ln, p))
+    monkeypatch.setattr(B, "_corner_graph", lambda *a, **k: None)
     monkeypatch.setattr(B, "candidate_quads", lambda *a, **k: quads)
     grad = Gradients(np.zeros((480, 640), np.int16), np.zeros((480, 640), np.int16), None,
                      (0, 0, 640, 480))

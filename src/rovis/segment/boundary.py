@@ -19,8 +19,8 @@ from numpy.typing import NDArray
 from rovis.segment.edges import Gradients, canny
 from rovis.segment.lines import (Lines, SupportProfile, hough_lines, intersect, refine_lines,
                                  refine_segment, support_profile)
-from rovis.segment.quads import (CoverSelection, QuadConfig, Quads, _canonical, _corner_graph,
-                                 _shoelace, canonical_quads,
+from rovis.segment.quads import (CoverSelection, CornerGraph, QuadConfig, Quads, _canonical,
+                                 _corner_graph, _shoelace, canonical_quads,
                                  _distinct, candidate_quads, opposite_sided_quads, order_corners,
                                  three_sided_quads, two_sided_quads)
 from rovis.segment.quality import PRINTED, quality
@@ -165,6 +165,9 @@ class Evaluation:
     # candidates under QuadConfig.min_area_px (down to SegmentConfig.pool_min_area_px):
     # never covers of this image, for stereo's pool only
     small: Quads | None = None
+    # all_lines' corner graph (rovis.segment.quads._corner_graph, under the SegmentConfig
+    # evaluated with): the candidates with sides unseen from the same lines reuse it
+    graph: CornerGraph | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -287,9 +290,11 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
     profile = support_profile(lines, edges, grad, box=grad.box)
     if cfg.refine_lines:  # Hough's 1° cells, undone: a long side's corners keep their arms
         lines, profile = refine_lines(lines, edges, profile, grad, box=grad.box)
+    graph = _corner_graph(lines, profile, grad.shape, cfg.quads)  # (no area in it)
     quads = candidate_quads(lines, profile, grad.shape, area,
                             replace(cfg.quads, min_area_px=min(cfg.quads.min_area_px,
-                                                               cfg.pool_min_area_px)))
+                                                               cfg.pool_min_area_px)),
+                            graph=graph)
     big = np.abs(_shoelace(quads.corners)) >= cfg.quads.min_area_px
     small = _distinct(quads.take(~big), cfg.quads.duplicate_px)[0]  # each 4-cycle comes twice
     selection = CoverSelection(quads.take(big), cfg.quads)
@@ -313,7 +318,7 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
         y = quality(n, covers.n_f, area, cfg.n_max, sign=cfg.quality_sign)
         if best is None or y > best.y:
             best = Evaluation(T_H, t, y, lines.take(lines.votes >= t), covers, len(candidates),
-                              selection, lines, profile, small)
+                              selection, lines, profile, small, graph)
     assert best is not None
     _lap(timing, "quads", clock)
     return best
@@ -397,13 +402,15 @@ def without_near(quads: Quads, others: Quads, tol_px: float) -> Quads:
 def open_candidates(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
                     area: float | None = None,
                     timing: dict[str, float] | None = None) -> Quads:
-    """The three-sided candidates (:func:`three_sided_quads`) of one evaluation: from the
-    lines its candidates were formed from (``timing``: under ``"three_sided"``)."""
+    """The three-sided candidates (:func:`three_sided_quads`) of one evaluation (made with
+    ``cfg``): from the lines its candidates were formed from (``timing``: under
+    ``"three_sided"``)."""
     if ev.all_lines is None or ev.profile is None or len(ev.all_lines) < 3:
         return Quads.empty()
     clock = time.perf_counter()
     area = roi_area(grad) if area is None else area
-    quads = three_sided_quads(ev.all_lines, ev.profile, grad.shape, area, cfg.quads)
+    quads = three_sided_quads(ev.all_lines, ev.profile, grad.shape, area, cfg.quads,
+                              graph=ev.graph)
     _lap(timing, "three_sided", clock)
     return quads
 
@@ -412,13 +419,15 @@ def two_sided_candidates(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
                          area: float | None = None,
                          timing: dict[str, float] | None = None) -> Quads:
     """The two-sided candidates (:func:`two_sided_quads`, and with
-    ``cfg.opposite_sided`` :func:`opposite_sided_quads`) of one evaluation, from the lines
-    its candidates were formed from (``timing``: under ``"two_sided"``)."""
+    ``cfg.opposite_sided`` :func:`opposite_sided_quads`) of one evaluation (made with
+    ``cfg``), from the lines its candidates were formed from (``timing``: under
+    ``"two_sided"``)."""
     if ev.all_lines is None or ev.profile is None or len(ev.all_lines) < 2:
         return Quads.empty()
     clock = time.perf_counter()
     area = roi_area(grad) if area is None else area
-    graph = _corner_graph(ev.all_lines, ev.profile, grad.shape, cfg.quads)  # for both
+    graph = ev.graph if ev.graph is not None else _corner_graph(  # for both
+        ev.all_lines, ev.profile, grad.shape, cfg.quads)
     quads = two_sided_quads(ev.all_lines, ev.profile, grad.shape, area, cfg.quads, graph=graph)
     if cfg.opposite_sided:
         quads = Quads.concat([quads, opposite_sided_quads(ev.all_lines, ev.profile, grad.shape,

@@ -103,7 +103,8 @@ class Quads:
 
 
 def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[int, int],
-                    roi_area: float, cfg: QuadConfig = QuadConfig()) -> Quads:
+                    roi_area: float, cfg: QuadConfig = QuadConfig(), *,
+                    graph: CornerGraph | None = None) -> Quads:
     """Cover candidates: 4-cycles of a corner graph over the lines.
 
     Two crossing lines make a corner when both carry edge pixels next to their
@@ -121,11 +122,14 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     image_shape : (H, W)
     roi_area : float
         Pixels; bounds the largest plausible cover.
+    graph : CornerGraph, optional
+        :func:`_corner_graph`'s output for these lines, if already computed.
     """
     n = len(lines)
     if n < 4:
         return Quads.empty()
-    X, T, corner, par = _corner_graph(lines, profile, image_shape, cfg)
+    X, T, corner, par = graph if graph is not None else _corner_graph(lines, profile,
+                                                                       image_shape, cfg)
     iu, ku = np.nonzero(np.triu(par, 1))
     common = corner[iu] & corner[ku]  # (pairs, n): lines crossing both with a corner
     p, j, l = _pairs_within_rows(common)  # every two common neighbours j < l of pair p
@@ -171,7 +175,7 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
 def three_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[int, int],
                       roi_area: float, cfg: QuadConfig = QuadConfig(), *,
                       max_gap_px: float = 8.0, max_run_px: float = 400.0,
-                      max_skew_deg: float = 8.0) -> Quads:
+                      max_skew_deg: float = 8.0, graph: CornerGraph | None = None) -> Quads:
     """Beyond the paper: cover candidates with three sides on lines and the fourth where
     the other two sides' edges end.
 
@@ -185,7 +189,8 @@ def three_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[
     be within ``max_skew_deg`` of parallel to the base (a cover's far and near sides are,
     in perspective, at this size), which the two ends of a cover's sides are and those
     of unrelated edges mostly not. Too loose for one image to trust: stereo checks them
-    (:attr:`rovis.segment.Segmentation.open_pool`).
+    (:attr:`rovis.segment.Segmentation.open_pool`). ``graph``: :func:`_corner_graph`'s
+    output for these lines, if already computed.
 
     Returns
     -------
@@ -196,7 +201,8 @@ def three_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[
     n = len(lines)
     if n < 3:
         return Quads.empty()
-    X, T, corner, par = _corner_graph(lines, profile, image_shape, cfg)
+    X, T, corner, par = graph if graph is not None else _corner_graph(lines, profile,
+                                                                       image_shape, cfg)
     iu, ku = np.nonzero(np.triu(par, 1))
     p, b = np.nonzero(corner[iu] & corner[ku])  # base b crosses laterals a, c with corners
     a, c = iu[p], ku[p]
