@@ -180,6 +180,30 @@ def test_duplicate_candidates_merge_into_the_strongest_within_reach():
     assert 40 <= len(kept) < n
 
 
+def test_without_near_drops_the_quads_with_all_corners_near_another_set():
+    from rovis.segment.boundary import without_near
+    from rovis.segment.quads import Quads, _canonical
+
+    rng = np.random.default_rng(5)
+    base = rng.uniform(0, 600, (30, 1, 2)) + np.array([[0, 0], [80, 0], [80, 60], [0, 60]])
+    others = base + rng.uniform(-1, 1, base.shape)
+    # near copies (some listed the other way round), some just outside reach, unrelated ones
+    corners = np.concatenate([base[:10] + rng.uniform(-2.9, 2.9, (10, 4, 2)),
+                              base[10:20, ::-1] + rng.uniform(-1, 1, (10, 4, 2)),
+                              base[20:] + rng.uniform(3.5, 5, (10, 4, 2)),
+                              rng.uniform(0, 600, (10, 1, 2)) + base[0] - base[0, :1]])
+    n = len(corners)
+    quads = Quads(np.arange(n)[:, None].repeat(4, axis=1), corners, np.ones((n, 4)),
+                  np.full(n, 100.0), np.full(n, 40, np.int64))
+    kept = without_near(quads, Quads(np.zeros((30, 4), np.intp), others, np.ones((30, 4)),
+                                     np.full(30, 100.0), np.full(30, 40, np.int64)), 3.0)
+    # every pair compared, corners in eq. 1 order
+    a, b = _canonical(corners), _canonical(others)
+    far = [k for k in range(n) if all(np.abs(a[k] - b[m]).max() > 3.0 for m in range(30))]
+    np.testing.assert_array_equal(kept.lines[:, 0], far)
+    assert 10 <= len(far) <= 30
+
+
 def _evaluation(T_H, y, corners):
     from rovis.segment.boundary import Evaluation
     from rovis.segment.lines import Lines
