@@ -137,6 +137,40 @@ def test_a_run_of_edge_pixels_ends_at_its_first_long_gap_both_ways():
     np.testing.assert_array_equal(end, [20.0, 20.0])  # at most ``most``
 
 
+def test_every_run_ends_where_a_walk_sample_by_sample_finds_its_gap():
+    # several lines, runs reaching either end of a line and lines with no gap or no hit
+    from rovis.segment.lines import SupportProfile
+    from rovis.segment.quads import _run_end
+    rng = np.random.default_rng(7)
+    n_lines, n_samples, g, start = 6, 90, 8, 3
+    hit = (rng.random((n_lines, n_samples)) < rng.uniform(0.3, 1.0, (n_lines, 1))).astype(int)
+    hit[0], hit[1] = 1, 0
+    hit[2, :25] = hit[2, -25:] = 1
+    cum = np.concatenate([np.zeros((n_lines, 1), int), np.cumsum(hit, axis=1)], axis=1)
+    profile = SupportProfile(cum.astype(np.int32), rng.uniform(-50, 50, n_lines))
+    line = rng.integers(0, n_lines, 400)
+    k0 = rng.integers(-3, n_samples + 3, 400)  # the corner's sample, a few outside the line
+    sign = rng.choice([-1.0, 1.0], 400)
+    end, hits = _run_end(profile, line, profile.t0[line] + k0, sign, start, g, 60.0)
+
+    def gap(i, m, up):  # a gap starts (up) or ends at sample m: g samples with no hit
+        lo, hi = (m, m + g) if up else (m - g + 1, m + 1)
+        return not hit[i, max(lo, 0):max(min(hi, n_samples), 0)].any()
+
+    for q in range(400):
+        i, k, up = line[q], k0[q], sign[q] > 0
+        if not 0 <= k < n_samples:
+            assert end[q] == hits[q] == 0
+            continue
+        m = min(max(k + start if up else k - start, 0), n_samples - 1)
+        while 0 <= m < n_samples and not gap(i, m, up):
+            m += 1 if up else -1
+        want = min(abs(m - k), 60)
+        stop = k + want if up else k - want
+        first = min(max(k + start if up else k - start, 0), n_samples - 1)
+        span = hit[i, first:max(stop, first)] if up else hit[i, max(stop + 1, 0):first + 1]
+        assert (end[q], hits[q]) == (want, span.sum()), q
+
 def test_where_no_threshold_gave_a_cover_every_evaluation_offers_its_three_sided(monkeypatch):
     import rovis.segment.control as control
     asked = []
