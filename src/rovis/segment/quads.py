@@ -398,25 +398,28 @@ def opposite_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tup
     ra = first[pi[pair]] + m // count[pk[pair]]
     rb = first[pk[pair]] + m % count[pk[pair]]
     lo_s, hi_s = np.asarray(r_lo, np.float64), np.asarray(r_hi, np.float64)
-    la, lb = r_line_a[ra], r_line_a[rb]
     nrm, d = lines.normals, lines.directions
-    ta0, ta1 = profile.t0[la] + lo_s[ra], profile.t0[la] + hi_s[ra]
-    tb0, tb1 = profile.t0[lb] + lo_s[rb], profile.t0[lb] + hi_s[rb]
-    a0 = lines.rho[la, None] * nrm[la] + ta0[:, None] * d[la]
-    a1 = lines.rho[la, None] * nrm[la] + ta1[:, None] * d[la]
-    b0 = lines.rho[lb, None] * nrm[lb] + tb0[:, None] * d[lb]
-    b1 = lines.rho[lb, None] * nrm[lb] + tb1[:, None] * d[lb]
-    # line b's ends along line a: its direction may run either way
-    s0, s1 = np.sum(b0 * d[la], axis=1), np.sum(b1 * d[la], axis=1)
+    # each run's end points and their positions along its line, once per run (a run is in
+    # many pairs); then per pair only what the test below needs, the points for those kept
+    foot, along = lines.rho[r_line_a, None] * nrm[r_line_a], d[r_line_a]
+    e0 = foot + (profile.t0[r_line_a] + lo_s)[:, None] * along
+    e1 = foot + (profile.t0[r_line_a] + hi_s)[:, None] * along
+    t_e0, t_e1 = np.sum(e0 * along, axis=1), np.sum(e1 * along, axis=1)
+    la, lb = r_line_a[ra], r_line_a[rb]
+    t_a0, t_a1 = t_e0[ra], t_e1[ra]
+    # line b's ends along line a: its direction may run either way (np.sum over x and y
+    # written out: the same values)
+    dx, dy = d[la, 0], d[la, 1]
+    s0, s1 = e0[rb, 0] * dx + e0[rb, 1] * dy, e1[rb, 0] * dx + e1[rb, 1] * dy
     flip = s0 > s1
-    b0, b1 = np.where(flip[:, None], b1, b0), np.where(flip[:, None], b0, b1)
     s0, s1 = np.minimum(s0, s1), np.maximum(s0, s1)
-    t_a0, t_a1 = np.sum(a0 * d[la], axis=1), np.sum(a1 * d[la], axis=1)
     length = 0.5 * ((t_a1 - t_a0) + (s1 - s0))
     ok = (np.abs(s0 - t_a0) <= max_shift * length) & (np.abs(s1 - t_a1) <= max_shift * length)
     if not ok.any():
         return Quads.empty()
-    corners = np.stack([a0, a1, b1, b0], axis=1)[ok]  # sides: a, open, b, open
+    ra, rb, la, lb, flip = ra[ok], rb[ok], la[ok], lb[ok], flip[ok, None]
+    b0, b1 = np.where(flip, e1[rb], e0[rb]), np.where(flip, e0[rb], e1[rb])
+    corners = np.stack([e0[ra], e1[ra], b1, b0], axis=1)  # sides: a, open, b, open
     lat = np.hypot(*(corners[:, 2] - corners[:, 1]).T), np.hypot(*(corners[:, 0] - corners[:, 3]).T)
     h, w = image_shape
     inside = np.all((corners >= 0) & (corners < [w, h]), axis=(1, 2))
@@ -429,15 +432,15 @@ def opposite_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tup
             & _convex_with_angles(corners, cfg.min_corner_deg))
     if not keep.any():
         return Quads.empty()
-    hits_a = np.asarray(r_hits, np.float64)[ra][ok]
-    hits_b = np.asarray(r_hits, np.float64)[rb][ok]
+    hits_a = np.asarray(r_hits, np.float64)[ra]
+    hits_b = np.asarray(r_hits, np.float64)[rb]
     zero = np.zeros(len(hits_a))
     support = np.column_stack([hits_a / np.maximum(side_a, 1.0), zero,
                                hits_b / np.maximum(side_b, 1.0), zero])
     open_side = np.full(len(hits_a), -1)
-    quads = Quads(np.column_stack([la[ok], open_side, lb[ok], open_side])[keep], corners[keep],
+    quads = Quads(np.column_stack([la, open_side, lb, open_side])[keep], corners[keep],
                   np.minimum(support[keep], 1.0), (hits_a + hits_b)[keep],
-                  np.minimum(lines.votes[la[ok]], lines.votes[lb[ok]])[keep])
+                  np.minimum(lines.votes[la], lines.votes[lb])[keep])
     return _distinct(quads, cfg.duplicate_px)[0]
 
 
