@@ -130,7 +130,7 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
         return Quads.empty()
     X, T, corner, par = graph if graph is not None else _corner_graph(lines, profile,
                                                                        image_shape, cfg)
-    iu, ku = np.nonzero(np.triu(par, 1))
+    iu, ku = _nonzero2(np.triu(par, 1))
     common = corner[iu] & corner[ku]  # (pairs, n): lines crossing both with a corner
     p, j, l = _pairs_within_rows(common)  # every two common neighbours j < l of pair p
     keep = par[j, l]
@@ -203,8 +203,8 @@ def three_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[
         return Quads.empty()
     X, T, corner, par = graph if graph is not None else _corner_graph(lines, profile,
                                                                        image_shape, cfg)
-    iu, ku = np.nonzero(np.triu(par, 1))
-    p, b = np.nonzero(corner[iu] & corner[ku])  # base b crosses laterals a, c with corners
+    iu, ku = _nonzero2(np.triu(par, 1))
+    p, b = _nonzero2(corner[iu] & corner[ku])  # base b crosses laterals a, c with corners
     a, c = iu[p], ku[p]
     flat_T = T.ravel()
     tba, tbc = flat_T[b * n + a], flat_T[b * n + c]  # the corners along the base
@@ -297,7 +297,7 @@ def two_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
         return Quads.empty()
     X, T, corner, _ = graph if graph is not None else _corner_graph(lines, profile,
                                                                      image_shape, cfg)
-    a, b = np.nonzero(np.triu(corner, 1))
+    a, b = _nonzero2(np.triu(corner, 1))
     if len(a) == 0:
         return Quads.empty()
     trim = cfg.corner_trim_px
@@ -313,7 +313,7 @@ def two_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     end, hit, ok, sign = (v.reshape(4, m) for v in (end, hit, ok, sign))
     # the four ways of an L: (a forward or back) x (b forward or back)
     ia, ib = np.array([0, 0, 1, 1]), np.array([2, 3, 2, 3])
-    k, w = np.nonzero(ok[ia] & ok[ib])  # (way, corner)
+    k, w = _nonzero2(ok[ia] & ok[ib])  # (way, corner)
     if len(k) == 0:
         return Quads.empty()
     ra, rb = ia[k], ib[k]
@@ -367,7 +367,7 @@ def opposite_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tup
         return Quads.empty()
     _, _, _, par = graph if graph is not None else _corner_graph(lines, profile,
                                                                   image_shape, cfg)
-    pi, pk = np.nonzero(np.triu(par, 1))
+    pi, pk = _nonzero2(np.triu(par, 1))
     if len(pi) == 0:
         return Quads.empty()
     # each line's runs of edge pixels, all lines at once: a run starts at a hit with none
@@ -379,8 +379,8 @@ def opposite_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tup
     hit = cum[:, 1:] > cum[:, :-1]
     behind = cum[:, k] - cum[:, np.maximum(k - g, 0)]
     ahead = cum[:, np.minimum(k + g + 1, n_samples)] - cum[:, k + 1]
-    r_line, r_lo = np.nonzero(hit & (behind == 0))  # by line, then position: in step
-    _, r_end = np.nonzero(hit & (ahead == 0))
+    r_line, r_lo = _nonzero2(hit & (behind == 0))  # by line, then position: in step
+    _, r_end = _nonzero2(hit & (ahead == 0))
     r_hi = r_end + 1
     r_hits = cum[r_line, r_hi] - cum[r_line, r_lo]
     ok = ((r_hi - r_lo) >= cfg.min_side_px) & (r_hits >= cfg.min_support * (r_hi - r_lo))
@@ -502,7 +502,7 @@ def _corner_graph(lines: Lines, profile: SupportProfile, image_shape: tuple[int,
     m = cfg.outside_frac * max(h, w)
     inside = ((X[..., 0] > -m) & (X[..., 0] < w + m) & (X[..., 1] > -m) & (X[..., 1] < h + m))
     corner = (dth > np.radians(cfg.min_corner_deg)) & inside & inside.T
-    ci, cj = np.nonzero(np.triu(corner, 1))
+    ci, cj = _nonzero2(np.triu(corner, 1))
     ok = _arm(profile, ci, T[ci, cj], cfg) & _arm(profile, cj, T[cj, ci], cfg)
     corner[:] = False
     corner[ci[ok], cj[ok]] = corner[cj[ok], ci[ok]] = True
@@ -516,7 +516,7 @@ def _corner_graph(lines: Lines, profile: SupportProfile, image_shape: tuple[int,
 def _pairs_within_rows(m: NDArray[np.bool_]) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
     """All ``(row, j, l)`` with ``j < l`` and ``m[row, j]``, ``m[row, l]`` both set (vectorised
     over the rows: the k set entries of a row give k(k-1)/2 triples)."""
-    row, col = np.nonzero(m)  # sorted by row, then column
+    row, col = _nonzero2(m)  # sorted by row, then column
     count = np.bincount(row, minlength=m.shape[0])
     start = np.cumsum(count) - count
     after = count[row] - (np.arange(len(row)) - start[row]) - 1  # entries later in its row
@@ -524,6 +524,12 @@ def _pairs_within_rows(m: NDArray[np.bool_]) -> tuple[NDArray[np.intp], NDArray[
     # the k-th partner of entry e is entry e + 1 + k
     second = first + 1 + np.arange(len(first)) - np.repeat(np.cumsum(after) - after, after)
     return row[first], col[first], col[second]
+
+
+def _nonzero2(m: NDArray[np.generic]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """``np.nonzero`` of a 2-D array, the same indices in the same order (by row, then
+    column), from the flat ones: on the sparse masks here several times faster."""
+    return np.divmod(np.flatnonzero(m), m.shape[1])
 
 
 def _min4(c: NDArray[np.float64] | list[NDArray[np.float64]]) -> NDArray[np.float64]:
@@ -612,7 +618,7 @@ class CoverSelection:
         # (small, big) pairs that may be cover and outline; the exact test only for those.
         maybe = (self.near & (shared >= 2) & (areas[:, None] < areas[None, :])
                  & (areas[:, None] >= cfg.nested_min_area * areas[None, :]))
-        small, big = np.nonzero(maybe)
+        small, big = _nonzero2(maybe)
         nested = _inside_convex(quads.corners[small], _canonical(quads.corners)[big], ordered=True)
         # An outline gives way while any cover nested in it exists, i.e. up to the highest
         # T_HG among its covers (the lowest integer: it contains none).
