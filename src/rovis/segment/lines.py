@@ -8,7 +8,7 @@ A line is ``x·cos θ + y·sin θ = ρ`` (OpenCV's Hough form), θ in [0, π). I
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -181,6 +181,25 @@ class SupportProfile:
     cum: NDArray[np.int32]  # (N, L + 1)
     t0: NDArray[np.float64]  # (N,)
     t_in: NDArray[np.float64] | None = None  # (N, 2): where each line is inside the image
+    _gaps: dict[int, tuple[NDArray[np.intp], NDArray[np.intp]]] = field(
+        default_factory=dict, init=False, repr=False)  # gaps(), by gap length
+
+    def gaps(self, g: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        """Where the gaps of ``g`` samples with no hit start, and where they end, on every
+        line: sorted flat indices ``line·L + m``, the starts closed by ``N·L`` and the ends
+        opened by −1. Found once per ``g``: the three- and two-sided candidates of one
+        profile both follow runs to their gaps (:func:`rovis.segment.quads._run_end`)."""
+        if g not in self._gaps:
+            cum = self.cum
+            n_lines, n_samples = cum.shape[0], cum.shape[1] - 1
+            k = np.arange(n_samples)
+            # a gap starts at m when samples m .. m+g-1 hold no hit (beyond the samples: none)
+            ahead = cum[:, np.minimum(k + g, n_samples)] - cum[:, k]
+            # a gap ends at m when samples m-g+1 .. m hold no hit
+            behind = cum[:, k + 1] - cum[:, np.maximum(k + 1 - g, 0)]
+            self._gaps[g] = (np.append(np.flatnonzero(ahead == 0), n_lines * n_samples),
+                             np.concatenate([[-1], np.flatnonzero(behind == 0)]))
+        return self._gaps[g]
 
     def visible(self, line: NDArray[np.intp], ta: NDArray[np.float64],
                 tb: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -451,26 +451,17 @@ def _run_end(profile: SupportProfile, line: NDArray[np.intp], t0: NDArray[np.flo
     ``sign`` (±1), from ``start`` on, before a gap of ``max_gap`` px (at most ``most``
     px); and the hits on the way (vectorised over the lines).
 
-    Where a gap starts (ends) is found once for every sample of every line; a run's
-    nearest gap ahead of (behind) its first sample is a binary search among them. The
+    Where gaps start (end) is found once per profile, for every sample of every line
+    (:meth:`SupportProfile.gaps`); a run's nearest gap ahead of (behind) its first sample is
+    a binary search among them (a running minimum over every sample took twice as long). The
     end is the gap's first sample, one past the last hit (a hit is an edge pixel within
     1 px): that makes up for Canny's rounding of a corner, whose edge stops short of it
     (on the drawn cover of tests/test_three_sided.py the far corners come out within 2 px;
     one or two pixels shorter, within 3 and 4).
     """
     cum = profile.cum  # (N, L + 1): hits before each sample
-    n_lines, n_samples = cum.shape[0], cum.shape[1] - 1
-    g = max(int(round(max_gap)), 1)
-    k = np.arange(n_samples)
-    # a gap starts at m when samples m .. m+g-1 hold no hit (beyond the samples: none)
-    ahead = cum[:, np.minimum(k + g, n_samples)] - cum[:, k]
-    # a gap ends at m when samples m-g+1 .. m hold no hit
-    behind = cum[:, k + 1] - cum[:, np.maximum(k + 1 - g, 0)]
-    # every line's gap starts (ends) as sorted flat indices line·L + m, each list closed by
-    # one past the last line (before the first): the nearest ahead of (behind) a sample is
-    # one binary search (a running minimum over every sample took twice as long)
-    starts = np.append(np.flatnonzero(ahead == 0), n_lines * n_samples)
-    ends = np.concatenate([[-1], np.flatnonzero(behind == 0)])
+    n_samples = cum.shape[1] - 1
+    starts, ends = profile.gaps(max(int(round(max_gap)), 1))
     k0 = np.rint(t0 - profile.t0[line]).astype(np.intp)  # the corner's sample
     up = sign > 0
     first = np.clip(np.where(up, k0 + int(start), k0 - int(start)), 0, n_samples - 1)
