@@ -77,8 +77,10 @@ class SplitConfig:
     one straight line onto another, ``min_jog_px`` or more off, the same way in both
     images and within ``jog_agree_px`` of each other, within ``agree`` of each other along
     the cover, each part about ``min_part`` long or more. Every jog is tried, the largest
-    first. ``jog_facing``: a side facing the camera is read too (its page block's edges
-    below it mostly break onto no straight line, but a clean jog there is a seam).
+    first; the seam line there needs a step along ``jog_min_share`` of its middle only (two
+    cues at one place). ``jog_facing``: a side facing the camera is read too (its page
+    block's edges below it mostly break onto no straight line, but a clean jog there is a
+    seam).
 
     The reverse (:func:`join_halves`, with ``join``): two books whose mean heights lie
     within ``join_step`` of each other, sharing a whole side (both its ends within
@@ -107,6 +109,7 @@ class SplitConfig:
     jog: bool = True
     min_jog_px: float = 2.0  # build/t1b's scene 6: 2.35 and 2.97 px (docs/stereo.md)
     jog_facing: bool = True
+    jog_min_share: float = 0.4  # build/t1c's scene 1: 0.60 and 0.48 (docs/stereo.md)
     jog_agree_px: float = 1.0
     jog_reach_px: float = 6.0
 
@@ -116,11 +119,13 @@ class SplitConfig:
             ("join_touch", self.join_touch >= 0), ("join_step", self.join_step >= 0),
             ("join_angle_deg", 0 <= self.join_angle_deg < 90),
             ("min_jog_px", self.min_jog_px > 0), ("jog_agree_px", self.jog_agree_px >= 0),
+            ("jog_min_share", 0 <= self.jog_min_share <= 1),
             ("jog_reach_px", self.jog_reach_px > 0)) if not ok]
         if problems:
             raise ValueError(f"split: bad {', '.join(problems)} (lay_reach, join_touch, "
                              "join_step and jog_agree_px at least 0; join_angle_deg in "
-                             "[0, 90); min_jog_px and jog_reach_px positive)")
+                             "[0, 90); min_jog_px and jog_reach_px positive; jog_min_share "
+                             "in [0, 1])")
 
 
 def seam_profile(grad: Gradients, corners: NDArray[np.float64], k: int, t: NDArray[np.float64],
@@ -284,7 +289,7 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
     jogged = []
     w = max(int(round(cfg.agree / cfg.step)), 0)
     for k, (t, found) in profiles.items():
-        if not all(np.any(share >= cfg.min_share) for share, _ in found.values()):
+        if not all(np.any(share >= cfg.jog_min_share) for share, _ in found.values()):
             continue  # no seam line in an image: nothing to cut at
         # each part about ``min_part`` long or more: a neighbour's edge near a corner is
         # no jog (``t`` spans the cover's middle, less ``min_part`` at either end)
@@ -298,7 +303,7 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
         window = np.arange(max(i - w, 0), min(i + w + 1, len(t)))
         i = int(window[np.argmax(share_l[window])])
         j = _right_seam(share_r, i, w)
-        if min(share_l[i], share_r[j]) < cfg.min_share:
+        if min(share_l[i], share_r[j]) < cfg.jog_min_share:
             continue
         parts = _parts(corners, grads, k, {"left": (t[i], off_l[i]), "right": (t[j], off_r[j])})
         if parts is not None:
