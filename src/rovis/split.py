@@ -239,7 +239,7 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
                         down: tuple[float, float] = (0.0, 1.0)) -> Split | None:
     """:func:`split_union`, with what placed the parts (:class:`Split`). Where no seam's
     sides step in height, the seam where a side jogs (``cfg.jog``, :func:`_jogs_at`; the
-    largest jog whose seam shows in both images) splits the cover.
+    largest jog whose seam shows in both images and whose parts fit) splits the cover.
 
     Parameters are :func:`split_union`'s.
     """
@@ -288,8 +288,9 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
     # side's at the seam)
     jogged = []
     w = max(int(round(cfg.agree / cfg.step)), 0)
+    least = min(cfg.jog_min_share, cfg.min_share)  # a jog asks less of the seam line, not more
     for k, (t, found) in profiles.items():
-        if not all(np.any(share >= cfg.jog_min_share) for share, _ in found.values()):
+        if not all(np.any(share >= least) for share, _ in found.values()):
             continue  # no seam line in an image: nothing to cut at
         # each part about ``min_part`` long or more: a neighbour's edge near a corner is
         # no jog (``t`` spans the cover's middle, less ``min_part`` at either end)
@@ -303,7 +304,7 @@ def split_union_heights(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
         window = np.arange(max(i - w, 0), min(i + w + 1, len(t)))
         i = int(window[np.argmax(share_l[window])])
         j = _right_seam(share_r, i, w)
-        if min(share_l[i], share_r[j]) < cfg.jog_min_share:
+        if min(share_l[i], share_r[j]) < least:
             continue
         parts = _parts(corners, grads, k, {"left": (t[i], off_l[i]), "right": (t[j], off_r[j])})
         if parts is not None:
