@@ -487,9 +487,10 @@ def _side_strength(grad: Gradients, quads: NDArray[np.float64], samples: int = 2
     u = np.linspace(0.1, 0.9, samples)
     pts = a[..., None, :] + u[:, None] * (b - a)[..., None, :]  # (..., 4, S, 2)
     best = None
-    for off in (-1.0, 0.0, 1.0):
-        q = pts + off * n[..., None, :]
-        gx, gy = grad.sample(q[..., 0], q[..., 1])
+    # the three offsets' points sampled at once (one call's overhead, not three)
+    offsets = np.array([-1.0, 0.0, 1.0]).reshape((3,) + (1,) * pts.ndim)
+    q = pts + offsets * n[..., None, :]
+    for gx, gy in zip(*grad.sample(q[..., 0], q[..., 1])):
         g = np.abs(gx * n[..., None, 0] + gy * n[..., None, 1])
         best = g if best is None else np.maximum(best, g)
     return np.median(best, axis=-1)
