@@ -881,9 +881,10 @@ class Detector:
                 else range(early[cam], len(pool[cam])) if extra is None else range(0)
                 for cam in pool}
         taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
-        index = {cam: np.array([k for k, q in enumerate(pool[cam].corners) if k not in skip[cam]
-                                and not any(quad_overlap(q, t) > overlap for t in taken[cam])],
-                               dtype=np.intp) for cam in pool}
+        over = {cam: _over_any(pool[cam].corners, taken[cam], overlap) for cam in pool}
+        index = {cam: np.array([k for k in range(len(pool[cam]))
+                                if k not in skip[cam] and not over[cam][k]], dtype=np.intp)
+                 for cam in pool}
         pp = pool_pairs(pool["left"].corners[index["left"]], pool["right"].corners[index["right"]],
                         rig.Q_L, rig.Q_R, desk_plane=desk_plane,
                         side_range=(0.8 * cfg.min_cover_side, 1.1 * cfg.max_cover_side),
@@ -2180,6 +2181,31 @@ def _shared(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
     inter, _ = cv2.intersectConvexConvex(a.astype(np.float32), b.astype(np.float32))
     area = cv2.contourArea(a.astype(np.float32))
     return float(inter) / area if area > 0 else 1.0
+
+
+def _over_any(quads: NDArray[np.float64], others: Sequence[NDArray[np.float64]],
+              share: float) -> NDArray[np.bool_]:
+    """Per quad of ``quads`` (N, 4, 2), whether one of ``others`` (each (4, 2)) overlaps it
+    by more than ``share`` (:func:`quad_overlap`).
+
+    The same as asking quad_overlap of every pair, which costs most of a pool's pass over
+    thousands of pairs: it is asked only of the pairs whose boxes meet (in float32, the
+    corners it reads), or with a quad of no area (an overlap of 1 to it). Two quads of
+    area apart overlap by 0."""
+    out = np.zeros(len(quads), bool)
+    if len(quads) == 0 or len(others) == 0:
+        return out
+    q32, t32 = quads.astype(np.float32), np.asarray(others).astype(np.float32)
+    ask = ~np.any((t32.min(axis=1)[None] > q32.max(axis=1)[:, None])
+                  | (t32.max(axis=1)[None] < q32.min(axis=1)[:, None]), axis=2)  # (N, T)
+    ask |= np.array([not cv2.contourArea(q) > 0 for q in q32])[:, None]
+    ask |= np.array([not cv2.contourArea(t) > 0 for t in t32])[None, :]
+    if share < 0:  # then 0 is over it too
+        ask[:] = True
+    for k, t in zip(*np.nonzero(ask)):
+        if not out[k] and quad_overlap(quads[k], others[t]) > share:
+            out[k] = True
+    return out
 
 
 def _sides_on(quad: NDArray[np.float64], regions: Sequence[NDArray[np.float64]], *,
