@@ -228,22 +228,42 @@ def test_a_pair_tilted_by_the_inward_cover_edge_search_is_refined_without_it(boo
     quads = _projected(rig, P)
     segs = {cam: replace(Segmentation.empty(100.0, 30), pool=_pool([q]))
             for cam, q in quads.items()}
-    refine = pipeline.refine_quad_both
+    refine = pipeline._refine_both
     calls = []
 
     def pulled(grad, corners, **kw):
-        inward, plain = refine(grad, corners, **kw)
+        inward, plain, fits = refine(grad, corners, **kw)
         calls.append(grad is grads["right"])
         if grad is grads["right"]:
             inward = inward.copy()
             inward[np.argsort(inward[:, 1])[2:]] -= [6.0, 0.0]  # the near corners 6 px off
-        return inward, plain
+        return inward, plain, fits
 
-    monkeypatch.setattr(pipeline, "refine_quad_both", pulled)
+    monkeypatch.setattr(pipeline, "_refine_both", pulled)
     found = Detector(rig, DetectConfig())._from_pool(rig, segs, grads, [], DESK, None)
     assert calls == [False, True]  # each image's quad refined once, both ways
     assert len(found) == 1
     assert abs(found[0][1].pose.size[2] - 0.03) < 0.004  # metres: flat at its true height
+
+
+def test_refining_both_ways_and_the_sides_at_once_gives_each_one(book):
+    # Detector._from_pool refines a candidate and fits its sides in one go (_refine_both):
+    # the same corners as refine_quad_both, the same fits as refine_sides
+    from rovis.pipeline import _refine_both
+    from rovis.segment.boundary import refine_quad_both, refine_sides
+    P, grads, rig = book
+    jog = np.array([[1.5, -1.0], [-1.0, 2.0], [0.5, 1.5], [2.0, 0.5]])
+    for cam, quad in _projected(rig, P).items():
+        for q in (quad, quad + jog, quad - 3 * jog):
+            inward, plain, fits = _refine_both(grads[cam], q)
+            want_inward, want_plain = refine_quad_both(grads[cam], q)
+            np.testing.assert_array_equal(inward, want_inward)
+            np.testing.assert_array_equal(plain, want_plain)
+            for fit, want in zip(fits, refine_sides(grads[cam], q), strict=True):
+                assert (fit is None) == (want is None)
+                if fit is not None:
+                    np.testing.assert_array_equal(fit[0], want[0])
+                    np.testing.assert_array_equal(fit[1], want[1])
 
 
 def _tilted_right(monkeypatch, grads):
@@ -251,20 +271,20 @@ def _tilted_right(monkeypatch, grads):
     lines at the near corners and 0.8 px the other way at the far ones: far from the
     camera, a few millimetres of height that tilt the cover."""
     import rovis.pipeline as pipeline
-    refine = pipeline.refine_quad_both
+    refine = pipeline._refine_both
 
     def tilted(grad, corners, **kw):
         out = refine(grad, corners, **kw)
         if grad is not grads["right"]:
             return out
-        moved = [q.copy() for q in out]
+        moved = [q.copy() for q in out[:2]]  # both ways' corners (not the sides' fits)
         for q in moved:
             rows = np.argsort(q[:, 1])
             q[rows[2:]] += [0.8, 0.0]
             q[rows[:2]] -= [0.8, 0.0]
-        return tuple(moved)
+        return (*moved, out[2])
 
-    monkeypatch.setattr(pipeline, "refine_quad_both", tilted)
+    monkeypatch.setattr(pipeline, "_refine_both", tilted)
 
 
 @pytest.mark.parametrize("refits", [20, 0])
@@ -315,8 +335,8 @@ def test_only_the_pairs_closest_to_their_epipolar_segments_are_refined(book, mon
             "right": replace(Segmentation.empty(100.0, 30), pool=_pool(
                 [off, geometry.project(rig.Q_R, P)]))}
     refined = []
-    refine = pipeline.refine_quad_both
-    monkeypatch.setattr(pipeline, "refine_quad_both",
+    refine = pipeline._refine_both
+    monkeypatch.setattr(pipeline, "_refine_both",
                         lambda grad, corners, **kw: refined.append(corners) or
                         refine(grad, corners, **kw))
     cfg = with_settings(DetectConfig(), ["stereo.pool_max_pairs=1"])
@@ -338,8 +358,8 @@ def test_the_pairs_over_a_book_already_found_are_not_refined(book, monkeypatch):
     assert len(pool_pairs(segs["left"].pool.corners, segs["right"].pool.corners, rig.Q_L,
                           rig.Q_R, desk_plane=DESK)) == 4
     refined = []
-    refine = pipeline.refine_quad_both
-    monkeypatch.setattr(pipeline, "refine_quad_both",
+    refine = pipeline._refine_both
+    monkeypatch.setattr(pipeline, "_refine_both",
                         lambda grad, corners, **kw: refined.append(corners) or
                         refine(grad, corners, **kw))
     found = Detector(rig, DetectConfig())._from_pool(rig, segs, grads, [], DESK, None)
@@ -383,7 +403,8 @@ def test_a_late_pair_that_fits_no_rectangle_is_refused(book, monkeypatch):
     skewed[np.argsort(skewed[:, 1])[2:], 1] += 6.0  # the two lowest corners in the image
     segs = {"left": replace(Segmentation.empty(100.0, 30), late_pool=_pool([quads["left"]])),
             "right": replace(Segmentation.empty(100.0, 30), late_pool=_pool([skewed]))}
-    monkeypatch.setattr(pipeline, "refine_quad_both", lambda grad, q, **kw: (q, q))
+    refine = pipeline._refine_both  # the corners as they are, the sides' fits as fitted
+    monkeypatch.setattr(pipeline, "_refine_both", lambda grad, q, **kw: (q, q, refine(grad, q)[2]))
     assert Detector(rig, DetectConfig())._from_pool(rig, segs, grads, [], DESK, None,
                                                     extra="late") == []
     loose = with_settings(DetectConfig(), ["stereo.late_max_reprojection_px=3"])
