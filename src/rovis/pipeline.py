@@ -2217,12 +2217,19 @@ def _over_any(quads: NDArray[np.float64], others: Sequence[NDArray[np.float64]],
     q32, t32 = quads.astype(np.float32), np.asarray(others).astype(np.float32)
     ask = ~np.any((t32.min(axis=1)[None] > q32.max(axis=1)[:, None])
                   | (t32.max(axis=1)[None] < q32.min(axis=1)[:, None]), axis=2)  # (N, T)
-    ask |= np.array([not cv2.contourArea(q) > 0 for q in q32])[:, None]
-    ask |= np.array([not cv2.contourArea(t) > 0 for t in t32])[None, :]
+    q_area = [cv2.contourArea(q) for q in q32]
+    t_area = [cv2.contourArea(t) for t in t32]
+    ask |= np.array([not a > 0 for a in q_area])[:, None]
+    ask |= np.array([not a > 0 for a in t_area])[None, :]
     if share < 0:  # then 0 is over it too
         ask[:] = True
-    for k, t in zip(*np.nonzero(ask)):
-        if not out[k] and quad_overlap(quads[k], others[t]) > share:
+    for k, t in zip(*(i.tolist() for i in np.nonzero(ask))):
+        if out[k]:
+            continue
+        # quad_overlap, its areas computed once per quad
+        inter, _ = cv2.intersectConvexConvex(q32[k], t32[t])
+        smaller = min(q_area[k], t_area[t])
+        if (float(inter) / smaller if smaller > 0 else 1.0) > share:
             out[k] = True
     return out
 
