@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -201,9 +202,10 @@ def sweep_heights(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Ar
     if seen.sum() < 0.9 * len(xs):
         return None
     a = left[ys[seen], xs[seen]].astype(np.float64)
-    if a.std() <= 0:
+    sa = a.std()
+    if sa <= 0:
         return None
-    a = (a - a.mean()) / (a.std() * a.size)
+    a = (a - a.mean()) / (sa * a.size)
     map_x, map_y = map_x[:, seen], map_y[:, seen]
     b = cv2.remap(right, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT).astype(np.float64)
     sb = b.std(axis=1)
@@ -358,13 +360,25 @@ def on_plane(Q: ArrayLike, px: ArrayLike, desk_plane: ArrayLike, height: float) 
 
 
 def _plane_frame(desk_plane: ArrayLike) -> tuple[NDArray[np.float64], ...]:
-    """The desk's point nearest the origin, its unit normal (up) and two unit directions in it."""
+    """The desk's point nearest the origin, its unit normal (up) and two unit directions in it
+    (read-only arrays)."""
     plane = np.asarray(desk_plane, dtype=np.float64)
+    # asked thousands of times a frame of one plane: kept by its value (a copy's bytes)
+    return _plane_frame_of(plane.shape, plane.tobytes())
+
+
+@lru_cache(maxsize=8)
+def _plane_frame_of(shape: tuple[int, ...], data: bytes) -> tuple[NDArray[np.float64], ...]:
+    """:func:`_plane_frame` of the plane whose float64 values are ``data``."""
+    plane = np.frombuffer(data, dtype=np.float64).reshape(shape)
     n = plane[:3] / np.linalg.norm(plane[:3])
     on_desk = -plane[3] * plane[:3] / (plane[:3] @ plane[:3])
     e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
     e1 /= np.linalg.norm(e1)
-    return on_desk, n, e1, np.cross(n, e1)
+    frame = (on_desk, n, e1, np.cross(n, e1))
+    for v in frame:  # shared by every caller
+        v.setflags(write=False)
+    return frame
 
 
 def texture_height(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: ArrayLike,
