@@ -297,7 +297,7 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
                                                                cfg.pool_min_area_px)),
                             graph=graph)
     big = np.abs(_shoelace(quads.corners)) >= cfg.quads.min_area_px
-    small = _distinct(quads.take(~big), cfg.quads.duplicate_px)[0]  # each 4-cycle comes twice
+    small = _distinct(quads.take(~big), cfg.quads.duplicate_px)[0]  # (near-duplicates)
     selection = CoverSelection(quads.take(big), cfg.quads)
     if T_HG is not None:
         candidates = [low]

@@ -167,9 +167,34 @@ def candidate_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     area = np.abs(_shoelace(corners))  # pixels²
     keep = ((area >= cfg.min_area_px) & (area <= cfg.max_area_frac * roi_area)
             & _convex_with_angles(corners, cfg.min_corner_deg))
+    keep[keep] = ~_twins(side_lines[keep], corners[keep], area[keep], n)
     quads = Quads(side_lines[keep], corners[keep], support[keep], hits[keep].sum(axis=1),
                   lines.votes[side_lines[keep]].min(axis=1))
     return quads
+
+
+def _twins(side_lines: NDArray[np.intp], corners: NDArray[np.float64],
+           area: NDArray[np.float64], n: int) -> NDArray[np.bool_]:
+    """Which of :func:`candidate_quads`' cycles are the second of their twin: each cycle
+    i–j–k–l (i < k, j < l) comes once from its opposite pair (i, k) and once from (j, l), as
+    j–i–l–k, the same corners reversed. The second (from the later pair: the larger first
+    line; the same N_f, so after the first in :func:`_distinct`'s order too) is dropped
+    where it can only join the first's group there: the
+    same area (its sum runs in another order) and a unique smallest x + y corner (the same
+    :func:`_canonical` corners); the same sides, edge pixels and votes it has anyway."""
+    s0, s1, s2, s3 = side_lines.T
+    second = s0 > s1
+    key = ((s0 * n + s1) * n + s2) * n + s3
+    partner = ((s1 * n + s0) * n + s3) * n + s2  # the twin's key
+    first = np.flatnonzero(~second)
+    if len(first) == 0:
+        return np.zeros(len(key), bool)
+    order = first[np.argsort(key[first])]
+    # each second's twin among the firsts (where it survived: the keys then match)
+    twin = order[np.minimum(np.searchsorted(key[order], partner), len(order) - 1)]
+    xy = corners[..., 0] + corners[..., 1]
+    unique_min = np.count_nonzero(xy == xy.min(axis=1, keepdims=True), axis=1) == 1
+    return second & (key[twin] == partner) & (area[twin] == area) & unique_min
 
 
 def three_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[int, int],
