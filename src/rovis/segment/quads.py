@@ -629,12 +629,15 @@ class CoverSelection:
         areas = np.abs(_shoelace(quads.corners))
         lo, hi = quads.corners.min(axis=1), quads.corners.max(axis=1)
         self.near = np.all((lo[:, None] <= hi[None, :]) & (lo[None, :] <= hi[:, None]), axis=2)
-        L = quads.lines
-        shared = (L[:, None, :, None] == L[None, :, None, :]).sum(axis=(2, 3))
         # (small, big) pairs that may be cover and outline; the exact test only for those.
-        maybe = (self.near & (shared >= 2) & (areas[:, None] < areas[None, :])
+        maybe = (self.near & (areas[:, None] < areas[None, :])
                  & (areas[:, None] >= cfg.nested_min_area * areas[None, :]))
         small, big = _nonzero2(maybe)
+        # sharing two or three lines: counted for these pairs only (all pairs: 16 (K, K)
+        # comparisons, the most time here)
+        L = quads.lines
+        shared = (L[small][:, :, None] == L[big][:, None, :]).sum(axis=(1, 2)) >= 2
+        small, big = small[shared], big[shared]
         nested = _inside_convex(quads.corners[small], _canonical(quads.corners)[big], ordered=True)
         # An outline gives way while any cover nested in it exists, i.e. up to the highest
         # T_HG among its covers (the lowest integer: it contains none).
