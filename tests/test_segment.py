@@ -541,3 +541,18 @@ def test_the_inner_loop_finds_the_best_hough_threshold_exactly(monkeypatch, sign
                         sign=sign) for t in range(cfg.T_HG_min, 102)}
     assert ev.y == pytest.approx(max(every.values()), rel=1e-12)
     assert sorted(ev.covers.n_f) == [380.0, 380.0]  # the two books, not the quad over both
+
+
+def test_window_hits_match_clipped_columns():
+    """window_hits: the hits in samples m + a .. m + b - 1 of every sample m, as the
+    difference of the clipped columns of the cumulative sums."""
+    from rovis.segment.lines import window_hits
+
+    rng = np.random.default_rng(3)
+    hits = rng.random((5, 40)) < 0.4
+    cum = np.zeros((5, 41), np.int32)
+    np.cumsum(hits, axis=1, out=cum[:, 1:])
+    m = np.arange(40)
+    for a, b in [(0, 8), (-7, 1), (-8, 0), (1, 9), (0, 1), (-3, 45), (2, 2)]:
+        want = cum[:, np.clip(m + b, 0, 40)] - cum[:, np.clip(m + a, 0, 40)]
+        assert np.array_equal(window_hits(cum, a, b), want), (a, b)

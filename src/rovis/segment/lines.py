@@ -192,11 +192,10 @@ class SupportProfile:
         if g not in self._gaps:
             cum = self.cum
             n_lines, n_samples = cum.shape[0], cum.shape[1] - 1
-            k = np.arange(n_samples)
             # a gap starts at m when samples m .. m+g-1 hold no hit (beyond the samples: none)
-            ahead = cum[:, np.minimum(k + g, n_samples)] - cum[:, k]
+            ahead = window_hits(cum, 0, g)
             # a gap ends at m when samples m-g+1 .. m hold no hit
-            behind = cum[:, k + 1] - cum[:, np.maximum(k + 1 - g, 0)]
+            behind = window_hits(cum, 1 - g, 1)
             self._gaps[g] = (np.append(np.flatnonzero(ahead == 0), n_lines * n_samples),
                              np.concatenate([[-1], np.flatnonzero(behind == 0)]))
         return self._gaps[g]
@@ -221,6 +220,19 @@ class SupportProfile:
         flat = self.cum.ravel()
         return (flat[row + np.minimum(np.maximum(hi, 0), last)]
                 - flat[row + np.minimum(np.maximum(lo, 0), last)]).astype(np.float64)
+
+
+def window_hits(cum: NDArray[np.int32], a: int, b: int) -> NDArray[np.int32]:
+    """The hits in samples ``m + a`` to ``m + b - 1`` (``a <= b``; those beyond the samples
+    count none) for every sample ``m`` of every line, from a profile's cumulative sums
+    ``cum`` (N, L + 1): shape (N, L), ``cum[:, clip(m + b)] - cum[:, clip(m + a)]``
+    with the indices clipped to [0, L]. Slices of ``cum`` padded with its first and last
+    columns: a third of the time of gathering the clipped columns."""
+    n_samples = cum.shape[1] - 1
+    left, right = max(-a, 0), max(b - 1, 0)
+    padded = np.concatenate([np.repeat(cum[:, :1], left, axis=1), cum,
+                             np.repeat(cum[:, -1:], right, axis=1)], axis=1)
+    return padded[:, left + b:left + b + n_samples] - padded[:, left + a:left + a + n_samples]
 
 
 def support_profile(lines: Lines, edges: NDArray[np.uint8], grad: Gradients | None = None, *,

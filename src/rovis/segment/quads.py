@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from rovis.segment.lines import Lines, SupportProfile
+from rovis.segment.lines import Lines, SupportProfile, window_hits
 
 
 # _corner_graph's output: intersections X (N, N, 2), positions T (N, N), corner and
@@ -399,11 +399,8 @@ def opposite_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tup
     # in the g samples before it and ends at one with none in the g after it
     g = max(int(round(max_gap_px)), 1)
     cum = profile.cum  # (N, L + 1): hits before each sample
-    n_samples = cum.shape[1] - 1
-    k = np.arange(n_samples)
     hit = cum[:, 1:] > cum[:, :-1]
-    behind = cum[:, k] - cum[:, np.maximum(k - g, 0)]
-    ahead = cum[:, np.minimum(k + g + 1, n_samples)] - cum[:, k + 1]
+    behind, ahead = window_hits(cum, -g, 0), window_hits(cum, 1, g + 1)
     r_line, r_lo = _nonzero2(hit & (behind == 0))  # by line, then position: in step
     _, r_end = _nonzero2(hit & (ahead == 0))
     r_hi = r_end + 1
