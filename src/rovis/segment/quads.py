@@ -245,14 +245,21 @@ def three_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[
     # Both laterals leave the base on the same side of it, either side (σ = ±1): along
     # line a the direction whose image vector points to that side of b.
     nrm, d = lines.normals, lines.directions
-    a, b, c, base_hits = (np.concatenate([v, v]) for v in (a, b, c, base_hits))
+    # (which way each lateral leaves the base, once per U: the same for both σ)
+    side_a = np.sign(np.sum(d[a] * nrm[b], axis=1))
+    side_c = np.sign(np.sum(d[c] * nrm[b], axis=1))
+    a, b, c, base_hits, side_a, side_c = (np.concatenate([v, v]) for v in
+                                          (a, b, c, base_hits, side_a, side_c))
     sigma = np.repeat([1.0, -1.0], len(a) // 2)
-    sa = sigma * np.sign(np.sum(d[a] * nrm[b], axis=1))
-    sc = sigma * np.sign(np.sum(d[c] * nrm[b], axis=1))
+    sa, sc = sigma * side_a, sigma * side_c
     # A lateral's run depends on its line, its corner with the base and its direction
     # only: each such run is followed once, however many U's share it.
     keys = np.concatenate([(a * n + b) * 2 + (sa > 0), (c * n + b) * 2 + (sc > 0)])
-    runs, inverse = np.unique(keys, return_inverse=True)
+    # np.unique(keys, return_inverse=True), from a mark per possible key (2·N² of them)
+    # instead of sorting the keys (many more)
+    mark = np.zeros(2 * n * n, bool)
+    mark[keys] = True
+    runs, inverse = np.flatnonzero(mark), (np.cumsum(mark) - 1)[keys]
     line, other, up = runs // 2 // n, runs // 2 % n, np.where(runs % 2 == 1, 1.0, -1.0)
     end, hit = _run_end(profile, line, flat_T[line * n + other], up, trim, max_gap_px,
                         max_run_px)
