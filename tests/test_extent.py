@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from rovis import extent, geometry
-from rovis.extent import ExtentConfig, complete_open, fit_pair_extent
+from rovis.extent import CompleteConfig, ExtentConfig, complete_open, fit_pair_extent
 from rovis.pipeline import DetectConfig, Detector, Pair
 from rovis.segment import SegmentConfig, gradients
 from rovis.segment.edges import CANNY_LOW_RATIO
@@ -441,6 +441,81 @@ def test_no_edge_where_a_side_is_guessed_gives_no_cover(lone_book):
     # a height outside the range asked for
     assert _complete(P, _side_moved(P, 2, 0.01), P, (2,), lone_book,
                      height_range=(0.03, 0.10)) is None
+
+
+def _dataset_scene(seed, scene):
+    """build/t1{,b,c}'s scene (rovis synth --protocol table1 --seed SEED), as rendered there."""
+    from rovis.synth.dataset import dataset_scenes
+
+    sc = next(s for k, s in dataset_scenes("table1", scene + 1, seed=seed) if k == scene)
+    return sc, render(sc, np.random.default_rng([seed, 9, scene]))
+
+
+@pytest.fixture(scope="module")
+def desk_toned_book():
+    """build/t1b's scene 25, book 3: a plain 5.1 cm book of the desk's tone whose two far
+    sides show no step in either image (against the desk, and against another plain book)."""
+    sc, r = _dataset_scene(2, 25)
+    grads = {cam: gradients(img) for cam, img in ideal_images(sc.rig, r).items()}
+    Q = {"left": sc.rig.Q_L, "right": sc.rig.Q_R}
+    return np.array(r.truth["books"][3]["corners"]), Q, grads, np.asarray(r.truth["desk_plane"])
+
+
+def _complete_far(book, guess_left, guess_right, **kw):
+    # sides 1 and 2 (its far sides) unseen; the seen sides 3 and 0 meet at its near corner
+    P, Q, grads, desk = book
+    strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
+    seen = np.array([True, False, False, True])
+    corners = {"left": geometry.project(Q["left"], guess_left),
+               "right": geometry.project(Q["right"], guess_right)}
+    return complete_open(corners, {"left": seen, "right": seen}, Q, grads,
+                         {"left": strength, "right": strength}, desk, CompleteConfig(**kw))
+
+
+def test_unseen_sides_with_no_step_stay_where_the_seen_sides_end(desk_toned_book):
+    P = desk_toned_book[0]
+    got = _complete_far(desk_toned_book, P, P)
+    assert got is not None
+    assert np.linalg.norm(got - P, axis=1).max() < 0.004  # m
+    # without the step (CompleteConfig.at_ends off) nothing places those sides
+    assert _complete_far(desk_toned_book, P, P, at_ends=False) is None
+
+
+@pytest.mark.parametrize("move", [-0.03, 0.03])
+def test_no_side_where_the_seen_sides_run_on_or_stop_short(desk_toned_book, move):
+    # both images guess the far side 3 cm inside the cover (the seen sides' edges run on
+    # beyond) or 3 cm out on the desk (they stop short of it): no cover
+    P = desk_toned_book[0]
+    moved = _side_moved(P, 1, move)
+    assert _complete_far(desk_toned_book, moved, moved) is None
+    # (the ends test is what refuses it: without it, a cover 3 cm off)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(extent, "_ends_at", lambda *a, **k: True)
+        got = _complete_far(desk_toned_book, moved, moved)
+        assert got is not None and np.linalg.norm(got - P, axis=1).max() > 0.025
+
+
+def test_no_side_where_the_two_images_guess_it_apart(desk_toned_book):
+    P = desk_toned_book[0]
+    apart = _side_moved(P, 1, 0.01)  # the left image's guess 1 cm further out
+    assert _complete_far(desk_toned_book, apart, P) is None
+    assert _complete_far(desk_toned_book, apart, P, ends_agree=0.02) is not None
+
+
+@pytest.mark.parametrize("seed, scene, book", [(2, 25, 3), (1, 8, 4), (1, 30, 3)])
+def test_the_pipeline_finds_books_of_the_desks_tone(seed, scene, book):
+    # build/t1b's scene 25 book 3, build/t1's scene 8 book 4 and scene 30 book 3: plain
+    # covers of the desk's tone, 3.4-5.8 cm high, whose far sides show no step in either
+    # image; each is a candidate with two sides unseen, completed where its near sides end
+    sc, r = _dataset_scene(seed, scene)
+    truth = np.asarray(r.truth["books"][book]["center"])
+
+    def nearest(cfg):
+        res = Detector(sc.rig, cfg).detect(r.left, r.right)
+        return min(np.abs(o.pose.center - truth).max() for o in res.objects)
+
+    assert nearest(DetectConfig()) < 0.006  # m, along each axis
+    assert nearest(DetectConfig(complete=CompleteConfig(at_ends=False))) > 0.05  # m
 
 
 def _with_near_side_on_its_foot(P, Q):

@@ -48,6 +48,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -856,6 +857,15 @@ class CompleteConfig:
     per fit). Where no height is measured (two opposite sides along the epipolar lines),
     heights from the desk up to ``max_height`` are tried every ``height_step``, then every
     quarter of that within half a step of the best.
+
+    ``at_ends`` (beyond the paper): an unseen side that shows no step anywhere within
+    ``search`` in both images (a cover of the desk's tone, its far sides against the desk)
+    stays where the two images' seen sides end, if those ends agree within
+    ``ends_agree``; only where stereo places a corner of two seen sides, every height
+    measured within ``ends_spread`` of the others; the side facing away from the camera
+    (no page block of its own to show); the seen sides next to it edges up to its corners
+    and no further; and the cover plain inside (at most ``plain_share`` of its middle at
+    the Canny low threshold).
     """
 
     enabled: bool = True
@@ -868,6 +878,10 @@ class CompleteConfig:
     max_angle_deg: float = 25.0
     side_sigma: float = 0.008
     inner_edge: bool = True
+    at_ends: bool = True
+    ends_agree: float = 0.005
+    ends_spread: float = 0.015
+    plain_share: float = 0.02
 
 
 def complete_open(corners: dict[str, NDArray[np.float64]], seen: dict[str, NDArray[np.bool_]],
@@ -944,6 +958,7 @@ def complete_open(corners: dict[str, NDArray[np.float64]], seen: dict[str, NDArr
             continue
         P = geometry.triangulate_dlt(Q["left"], Q["right"], px[0][None], px[1][None])
         estimates.append(float(geometry.plane_distance(desk_plane, P)[0]))
+    at_corner = bool(estimates)  # a corner of two seen sides, triangulated
     for s in range(4):
         if fits["left"][s] is None or fits["right"][s] is None:
             continue
@@ -957,7 +972,11 @@ def complete_open(corners: dict[str, NDArray[np.float64]], seen: dict[str, NDArr
         h = float(np.nanmedian(estimates)) if np.any(np.isfinite(estimates)) else np.nan
         if not (np.isfinite(h) and height_range[0] <= h <= height_range[1]):
             return None
-        placed = _place(h, corners, fits, Q, grads, strength, desk_plane, cfg, side_range)
+        # an unseen side showing no step may stay where the seen sides end (_place) where
+        # stereo places a corner, every height agreeing
+        at_ends = cfg.at_ends and at_corner and float(np.ptp(estimates)) <= cfg.ends_spread
+        placed = _place(h, corners, fits, Q, grads, strength, desk_plane, cfg, side_range,
+                        at_ends=at_ends)
         return None if placed is None else placed[0]
     # Two opposite sides along the epipolar lines (stereo cannot place them), their ends
     # where each image's edges happen to stop: no height. The cover's print tells it where
@@ -996,7 +1015,7 @@ def _place(h: float, corners: dict[str, NDArray[np.float64]],
            Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
            strength: dict[str, float], desk_plane: NDArray[np.float64],
            cfg: CompleteConfig, side_range: tuple[float, float], step: float | None = None,
-           ) -> tuple[NDArray[np.float64], float] | None:
+           at_ends: bool = False) -> tuple[NDArray[np.float64], float] | None:
     """:func:`complete_open`'s rectangle at cover height ``h``: its corners (4, 3) and the
     summed strength of its unseen sides (units of ``strength``), or None; the unseen sides
     looked for every ``step`` (default ``cfg.step``)."""
@@ -1009,9 +1028,9 @@ def _place(h: float, corners: dict[str, NDArray[np.float64]],
 
     # 1. each seen side on that plane: its fits' ends, both images
     ends: dict[int, list[NDArray[np.float64]]] = {s: [] for s in range(4)}
-    guess = np.zeros((4, 2))  # corners on the plane, as the images guessed them
+    guesses = {cam: flat(on_plane(Q[cam], corners[cam], desk_plane, h)) for cam in cams}
+    guess = 0.5 * (guesses["left"] + guesses["right"])  # corners as the images guessed them
     for cam in cams:
-        guess += 0.5 * flat(on_plane(Q[cam], corners[cam], desk_plane, h))
         for s in range(4):
             f = fits[cam][s]
             if f is None:
@@ -1060,7 +1079,18 @@ def _place(h: float, corners: dict[str, NDArray[np.float64]],
                 return None
             edge, score = _side_scores(P[idx], s, (s + 1) % 4, Q, grads, strength, limits)
             if not edge.any():
-                return None
+                # no step anywhere near (a cover of the desk's tone against the desk): the
+                # side stays where both images' seen sides end, where those ends agree
+                apart = [normal[s] @ (0.5 * (g[s] + g[(s + 1) % 4])) for g in guesses.values()]
+                here = corners_at(offset[None])[0]
+                if not at_ends or abs(apart[0] - apart[1]) > cfg.ends_agree or not (
+                        not _block_shows(here, s, Q, -h * up)
+                        and _ends_at(here, s, fitted, Q, grads, strength, limits)
+                        and all(strong_share(grads[cam], geometry.project(Q[cam], here),
+                                             2.0 * strength[cam]) <= cfg.plain_share
+                                for cam in cams)):
+                    return None
+                continue
             full = np.full(len(d), -np.inf)  # the score of every offset that is an edge
             full[idx[edge]] = score[edge]
             k = int(np.argmax(full))
@@ -1075,6 +1105,56 @@ def _place(h: float, corners: dict[str, NDArray[np.float64]],
             offset[s] = o[k, s]
             total += float(full[k])
     return corners_at(offset[None])[0], total
+
+
+def _ends_at(P: NDArray[np.float64], s: int, fitted: list[int], Q: dict[str, NDArray[np.float64]],
+             grads: dict[str, Gradients], strength: dict[str, float], limits: ExtentConfig,
+             reach: float = 0.02, stop: float = 0.25) -> bool:
+    """Whether the seen sides next to side ``s`` of the rectangle ``P`` (4, 3) run on as
+    edges, in both images, up to its corners (along ``limits.min_support`` of their last
+    ``reach`` metres) and stop there (along less than ``stop`` of the next ``reach``, in
+    each image). Side ``s`` then lies where they end, as the images guessed it."""
+    near = [(k, s if k == (s - 1) % 4 else (s + 1) % 4) for k in ((s - 1) % 4, (s + 1) % 4)
+            if k in fitted]
+    for k, corner in near:
+        other = k if corner == (k + 1) % 4 else (k + 1) % 4
+        d = P[other] - P[corner]
+        d = reach * d / max(float(np.linalg.norm(d)), 1e-9)
+        end = np.stack([P[corner] + d, P[corner], P[corner], P[corner] - d])[None]
+        edge, _ = _side_scores(end, 0, 1, Q, grads, strength, limits)
+        if not edge[0]:
+            return False
+        # ...and stop there: a line of the desk's grain or a neighbour's edge runs on
+        if any(_side_scores(end, 2, 3, Q, grads, strength, limits, cams=(cam,),
+                            min_support=stop)[0][0] for cam in Q):
+            return False
+    return bool(near)
+
+
+def strong_share(grad: Gradients, quad: NDArray[np.float64], min_gradient: float,
+                 inset: float = 0.8) -> float:
+    """The share of the pixels of a quad's middle (``inset`` of it about its centre) whose
+    gradient is ``min_gradient`` or more: about 0 inside a plain cover.
+
+    Parameters
+    ----------
+    grad : Gradients
+    quad : ndarray, shape (4, 2)
+        Ideal pixel corners.
+    min_gradient : float
+        Sobel units.
+    """
+    q = np.asarray(quad, dtype=np.float64)
+    q = q.mean(axis=0) + inset * (q - q.mean(axis=0))
+    h, w = grad.dx.shape
+    x0, y0 = np.clip(np.floor(q.min(axis=0)).astype(int), 0, [w, h])
+    x1, y1 = np.clip(np.ceil(q.max(axis=0)).astype(int) + 1, 0, [w, h])
+    inside = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    cv2.fillPoly(inside, [np.round(q - (x0, y0)).astype(np.int32)], 1)
+    dx = grad.dx[y0:y1, x0:x1].astype(np.float32)
+    dy = grad.dy[y0:y1, x0:x1].astype(np.float32)
+    strong = (dx * dx + dy * dy >= min_gradient ** 2) & (inside > 0)
+    return np.count_nonzero(strong) / max(np.count_nonzero(inside), 1)
 
 
 def lift_foot(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],

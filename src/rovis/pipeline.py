@@ -33,7 +33,7 @@ from rovis.calib import StereoRig
 from rovis.extent import (CompleteConfig, ExtentConfig, FacingConfig, SideHeightConfig,
                           _drop, _foot_is_edge, _grow_side, _moved, _on_desk, _side_scores, _unit,
                           complete_open, fit_pair_extent, height_from_sides, lift_foot,
-                          settle_facing_sides)
+                          settle_facing_sides, strong_share)
 from rovis.heightmap import (HeightMap, HeightMapConfig, Rectification, dense_height_map,
                              height_map, raised_covers, smooth_height_map, snap_sides,
                              sweeps_confirm)
@@ -915,9 +915,14 @@ class Detector:
 
         def worth(cam: str, k: int) -> bool:
             if (cam, k) not in plausible:
-                plausible[cam, k] = not two_open(pool[cam], k) or side_evidence(
-                    grads[cam], pool[cam].corners[k], evidence * strength[cam],
-                    reach_px=3.0).min() >= 0.3
+                quad = pool[cam].corners[k]
+                ev = side_evidence(grads[cam], quad, evidence * strength[cam], reach_px=3.0)
+                # ...but a plain one whose two sides are clear may be a cover of the desk's
+                # tone, its far sides against the desk: completed where those sides end
+                plausible[cam, k] = not two_open(pool[cam], k) or ev.min() >= 0.3 or (
+                    cfg.complete.at_ends
+                    and ev[pool[cam].lines[k] >= 0].min() >= 0.9
+                    and strong_share(grads[cam], quad, strength[cam]) <= cfg.complete.plain_share)
             return plausible[cam, k]
 
         keep = np.flatnonzero([worth("left", a) and worth("right", b)
