@@ -228,7 +228,7 @@ def test_a_pair_tilted_by_the_inward_cover_edge_search_is_refined_without_it(boo
     quads = _projected(rig, P)
     segs = {cam: replace(Segmentation.empty(100.0, 30), pool=_pool([q]))
             for cam, q in quads.items()}
-    refine = pipeline._refine_both
+    refine = pipeline.refine_quad_fits
     calls = []
 
     def pulled(grad, corners, **kw):
@@ -239,7 +239,7 @@ def test_a_pair_tilted_by_the_inward_cover_edge_search_is_refined_without_it(boo
             inward[np.argsort(inward[:, 1])[2:]] -= [6.0, 0.0]  # the near corners 6 px off
         return inward, plain, fits
 
-    monkeypatch.setattr(pipeline, "_refine_both", pulled)
+    monkeypatch.setattr(pipeline, "refine_quad_fits", pulled)
     found = Detector(rig, DetectConfig())._from_pool(rig, segs, grads, [], DESK, None)
     assert calls == [False, True]  # each image's quad refined once, both ways
     assert len(found) == 1
@@ -247,18 +247,16 @@ def test_a_pair_tilted_by_the_inward_cover_edge_search_is_refined_without_it(boo
 
 
 def test_refining_both_ways_and_the_sides_at_once_gives_each_one(book):
-    # Detector._from_pool refines a candidate and fits its sides in one go (_refine_both):
-    # the same corners as refine_quad_both, the same fits as refine_sides
-    from rovis.pipeline import _refine_both
-    from rovis.segment.boundary import refine_quad_both, refine_sides
+    # Detector._from_pool refines a candidate and fits its sides in one go
+    # (refine_quad_fits): the same corners as refine_quad, the same fits as refine_sides
+    from rovis.segment.boundary import refine_quad, refine_quad_fits, refine_sides
     P, grads, rig = book
     jog = np.array([[1.5, -1.0], [-1.0, 2.0], [0.5, 1.5], [2.0, 0.5]])
     for cam, quad in _projected(rig, P).items():
         for q in (quad, quad + jog, quad - 3 * jog):
-            inward, plain, fits = _refine_both(grads[cam], q)
-            want_inward, want_plain = refine_quad_both(grads[cam], q)
-            np.testing.assert_array_equal(inward, want_inward)
-            np.testing.assert_array_equal(plain, want_plain)
+            inward, plain, fits = refine_quad_fits(grads[cam], q)
+            np.testing.assert_array_equal(inward, refine_quad(grads[cam], q))
+            np.testing.assert_array_equal(plain, refine_quad(grads[cam], q, down=(0.0, 0.0)))
             for fit, want in zip(fits, refine_sides(grads[cam], q), strict=True):
                 assert (fit is None) == (want is None)
                 if fit is not None:
@@ -271,7 +269,7 @@ def _tilted_right(monkeypatch, grads):
     lines at the near corners and 0.8 px the other way at the far ones: far from the
     camera, a few millimetres of height that tilt the cover."""
     import rovis.pipeline as pipeline
-    refine = pipeline._refine_both
+    refine = pipeline.refine_quad_fits
 
     def tilted(grad, corners, **kw):
         out = refine(grad, corners, **kw)
@@ -284,7 +282,7 @@ def _tilted_right(monkeypatch, grads):
             q[rows[:2]] -= [0.8, 0.0]
         return (*moved, out[2])
 
-    monkeypatch.setattr(pipeline, "_refine_both", tilted)
+    monkeypatch.setattr(pipeline, "refine_quad_fits", tilted)
 
 
 @pytest.mark.parametrize("refits", [20, 0])
@@ -335,8 +333,8 @@ def test_only_the_pairs_closest_to_their_epipolar_segments_are_refined(book, mon
             "right": replace(Segmentation.empty(100.0, 30), pool=_pool(
                 [off, geometry.project(rig.Q_R, P)]))}
     refined = []
-    refine = pipeline._refine_both
-    monkeypatch.setattr(pipeline, "_refine_both",
+    refine = pipeline.refine_quad_fits
+    monkeypatch.setattr(pipeline, "refine_quad_fits",
                         lambda grad, corners, **kw: refined.append(corners) or
                         refine(grad, corners, **kw))
     cfg = with_settings(DetectConfig(), ["stereo.pool_max_pairs=1"])
@@ -358,8 +356,8 @@ def test_the_pairs_over_a_book_already_found_are_not_refined(book, monkeypatch):
     assert len(pool_pairs(segs["left"].pool.corners, segs["right"].pool.corners, rig.Q_L,
                           rig.Q_R, desk_plane=DESK)) == 4
     refined = []
-    refine = pipeline._refine_both
-    monkeypatch.setattr(pipeline, "_refine_both",
+    refine = pipeline.refine_quad_fits
+    monkeypatch.setattr(pipeline, "refine_quad_fits",
                         lambda grad, corners, **kw: refined.append(corners) or
                         refine(grad, corners, **kw))
     found = Detector(rig, DetectConfig())._from_pool(rig, segs, grads, [], DESK, None)
@@ -403,8 +401,9 @@ def test_a_late_pair_that_fits_no_rectangle_is_refused(book, monkeypatch):
     skewed[np.argsort(skewed[:, 1])[2:], 1] += 6.0  # the two lowest corners in the image
     segs = {"left": replace(Segmentation.empty(100.0, 30), late_pool=_pool([quads["left"]])),
             "right": replace(Segmentation.empty(100.0, 30), late_pool=_pool([skewed]))}
-    refine = pipeline._refine_both  # the corners as they are, the sides' fits as fitted
-    monkeypatch.setattr(pipeline, "_refine_both", lambda grad, q, **kw: (q, q, refine(grad, q)[2]))
+    refine = pipeline.refine_quad_fits  # the corners as they are, the sides' fits as fitted
+    monkeypatch.setattr(pipeline, "refine_quad_fits",
+                        lambda grad, q, **kw: (q, q, refine(grad, q)[2]))
     assert Detector(rig, DetectConfig())._from_pool(rig, segs, grads, [], DESK, None,
                                                     extra="late") == []
     loose = with_settings(DetectConfig(), ["stereo.late_max_reprojection_px=3"])

@@ -43,7 +43,7 @@ from rovis.segment import CascadeController, SegmentConfig, Segmentation, gradie
 from rovis.segment.edges import CANNY_LOW_RATIO, Gradients
 from rovis.segment.lines import Lines
 from rovis.segment.methods import METHODS, segment
-from rovis.segment.boundary import (Fit, _fit_side, _join, refine_quad, refine_quad_both,
+from rovis.segment.boundary import (Fit, refine_quad, refine_quad_both, refine_quad_fits,
                                     side_evidence)
 from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
 from rovis.split import SplitConfig, join_halves, split_union_heights
@@ -72,7 +72,7 @@ DROP_REASONS = ("degenerate", "too long", "too small", "tilted", "height", "side
 # A frame's pool candidates refined (Detector._from_pool): (camera, index into the pool,
 # open pool and small pool concatenated, the late pool after them in the late pass) →
 # corners with and without the inward search, (4, 2) each, and each side's fit
-# (refine_sides's, with the inward search): :func:`_refine_both`.
+# (refine_sides's, with the inward search): :func:`refine_quad_fits`.
 Refined = dict[tuple[str, int], tuple[NDArray[np.float64], NDArray[np.float64],
                                       list[Fit | None]]]
 # The checks after which a pair is retried with the other quads the closed loop found over
@@ -940,7 +940,7 @@ class Detector:
         def sub_pixel(cam: str, k: int, inward: bool = True) -> NDArray[np.float64]:
             # with and without the inward search at once: most pairs are tried both ways
             if (cam, k) not in cache:
-                cache[cam, k] = _refine_both(grads[cam], pool[cam].corners[k])
+                cache[cam, k] = refine_quad_fits(grads[cam], pool[cam].corners[k])
             return cache[cam, k][0 if inward else 1]
 
         def flat(left: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[np.bool_]:
@@ -2191,20 +2191,6 @@ def _shared(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
     inter, _ = cv2.intersectConvexConvex(a.astype(np.float32), b.astype(np.float32))
     area = cv2.contourArea(a.astype(np.float32))
     return float(inter) / area if area > 0 else 1.0
-
-
-def _refine_both(grad: Gradients, corners: NDArray[np.float64],
-                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], list[Fit | None]]:
-    """:func:`rovis.segment.boundary.refine_quad_both`'s corners (4, 2) with and without the
-    inward search, and :func:`~rovis.segment.boundary.refine_sides`'s fits, from one fit per
-    side (as ``boundary._refit`` makes them: a candidate completed in 3D is refined first,
-    and its sides would otherwise be fitted twice)."""
-    sides = [_fit_side(grad, corners, s, (0.0, 1.0), both=True) for s in range(4)]
-    inward = [fit if fit is not None else fallback for fit, _, fallback, _ in sides]
-    plain = [inward[s] if shift == 0.0 else fit if fit is not None
-             else (0.5 * (corners[s] + corners[(s + 1) % 4]), fallback[1])
-             for s, (_, fit, fallback, shift) in enumerate(sides)]
-    return _join(inward, corners), _join(plain, corners), [fit for fit, _, _, _ in sides]
 
 
 def _over_any(quads: NDArray[np.float64], others: Sequence[NDArray[np.float64]],

@@ -458,9 +458,19 @@ def refine_quad_both(grad: Gradients, corners: NDArray[np.float64], *,
                      ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """:func:`refine_quad` with the inward search for the cover edge and without it
     (``down`` = (0, 0)), sharing the fits of the sides the search leaves where they are."""
-    inward, plain = _refit(grad, corners, down, both=True)
-    assert plain is not None
+    inward, plain, _ = refine_quad_fits(grad, corners, down=down)
     return inward, plain
+
+
+def refine_quad_fits(grad: Gradients, corners: NDArray[np.float64], *,
+                     down: tuple[float, float] = (0.0, 1.0),
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64], list[Fit | None]]:
+    """:func:`refine_quad_both`'s corners (4, 2) and :func:`refine_sides`'s fits, from one
+    fit per side (a candidate refined, then completed in 3D from its sides' fits, is
+    fitted once)."""
+    inward, plain, fits = _refit(grad, corners, down, both=True)
+    assert plain is not None
+    return inward, plain, fits
 
 
 Fit = tuple[NDArray[np.float64], NDArray[np.float64]]  # a line: point, unit direction
@@ -496,20 +506,22 @@ def _fit_side(grad: Gradients, corners: NDArray[np.float64], s: int, down: tuple
 
 def _refit(grad: Gradients, corners: NDArray[np.float64], down: tuple[float, float], *,
            both: bool, half_width: float | Sequence[float] = 3.0,
-           ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
-    """:func:`refine_quad`'s corners, and (``both``) those without the inward search."""
-    inward, plain = [], []
+           ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None, list[Fit | None]]:
+    """:func:`refine_quad`'s corners, (``both``) those without the inward search, and
+    each side's fit (None where it failed)."""
+    inward, plain, fits = [], [], []
     widths = np.broadcast_to(np.asarray(half_width, dtype=np.float64), (4,))
     for s in range(4):
         fit_in, fit_plain, fallback, shift = _fit_side(grad, corners, s, down, both=both,
                                                        half_width=float(widths[s]))
+        fits.append(fit_in)
         # a side that cannot be refit keeps the segment it was fit from
         inward.append(fit_in if fit_in is not None else fallback)
         if both:
             a, b = corners[s], corners[(s + 1) % 4]
             plain.append(inward[-1] if shift == 0.0 else fit_plain if fit_plain is not None
                          else (0.5 * (a + b), fallback[1]))
-    return _join(inward, corners), (_join(plain, corners) if both else None)
+    return _join(inward, corners), (_join(plain, corners) if both else None), fits
 
 
 def _join(sides: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
