@@ -218,6 +218,36 @@ def test_bad_scenes_are_skipped_named_and_counted(dataset, tmp_path, capsys):
     assert "books[0].R: missing" in capsys.readouterr().err
 
 
+def test_a_method_that_raises_loses_its_books_not_the_scene(dataset, monkeypatch, capsys):
+    from rovis.calib import load_calibration
+    from rovis.pipeline import DetectConfig, Detector
+
+    rig = load_calibration(dataset / "calib.yaml")
+
+    class Broken(Detector):
+        def detect(self, left, right):
+            raise RuntimeError("a bug")
+
+    detectors = {"contour": Detector(rig, DetectConfig(method="contour")),
+                 "open": Broken(rig, DetectConfig(method="open"))}
+    rec = ev.score_scene(dataset / "scenes" / "0000", detectors)
+    assert "skipped" not in rec
+    assert "failed" not in rec["methods"]["contour"]
+    assert rec["methods"]["open"]["failed"] == "RuntimeError: a bug"
+    assert all(j is None for j in rec["methods"]["open"]["found"])  # its books missed
+    broken = ev.summarize_method([rec], "open")
+    assert broken["failed"] == 1 and broken["found"] == 0 and broken["images"] == 1
+    assert broken["books"] == len(rec["books"]) > 0
+    assert ev.summarize_method([rec], "contour")["failed"] == 0
+    assert "failed on 1 image (books counted as missed)" in ev.method_table("open", broken, None)
+    # and the command names it, scoring the rest
+    monkeypatch.setattr(Detector, "detect", Broken.detect)
+    assert main(["eval", str(dataset), "--methods", "contour", "--limit", "1"]) == 0
+    err = capsys.readouterr().err
+    assert "method contour failed on scene 0000 (its books counted as missed): " \
+           "RuntimeError: a bug" in err
+
+
 @pytest.mark.parametrize("case", ["missing", "empty", "no-calib", "no-scenes"])
 def test_not_a_dataset_is_one_line_and_exit_2(dataset, tmp_path, capsys, case):
     ds = tmp_path / "ds"

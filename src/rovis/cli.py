@@ -284,6 +284,11 @@ def _cmd_eval(args: argparse.Namespace) -> int:
                            progress=evaluate.stderr_progress())
     for item in ev.skipped:
         print(f"rovis eval: skipped scene {item['scene']}: {item['reason']}", file=sys.stderr)
+    for rec in ev.scenes:
+        for method, score in rec["methods"].items():
+            if "failed" in score:
+                print(f"rovis eval: method {method} failed on scene {rec['scene']} (its books "
+                      f"counted as missed): {score['failed']}", file=sys.stderr)
     total = len(ev.scenes) + len(ev.skipped)
     print(f"dataset {ds} ({ev.protocol or 'unknown protocol'}): {len(ev.scenes)} of {total} "
           f"scenes scored, {len(ev.skipped)} skipped; matched within "

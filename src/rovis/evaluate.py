@@ -325,8 +325,11 @@ def score_scene(scene_dir: str | os.PathLike[str], detectors: Mapping[str, Any])
         ``scene`` (the folder's name), the scene's ``protocol``, ``lux``, ``light``,
         ``exposure`` and true ``books``, per method the :func:`score_books` record under
         ``methods`` (with ``sources``: per detection, how it was found,
-        :attr:`rovis.results.BookDetection.source`), and ``timing_ms`` (per method, the pipeline's wall time). A scene that
-        cannot be scored is ``{"scene": name, "skipped": reason}`` instead.
+        :attr:`rovis.results.BookDetection.source`), and ``timing_ms`` (per method, the
+        pipeline's wall time). A method that raised on the scene has ``failed`` (the
+        exception, named) in its record and no detections: its books count as missed. A
+        scene no method can run on (unreadable, or images the calibration does not fit) is
+        ``{"scene": name, "skipped": reason}`` instead.
     """
     name = Path(scene_dir).name
     try:
@@ -340,11 +343,15 @@ def score_scene(scene_dir: str | os.PathLike[str], detectors: Mapping[str, Any])
         t0 = time.perf_counter()
         try:
             result = detector.detect(left, right)
-        except ValueError as exc:  # images the calibration does not fit
+        except ValueError as exc:  # images the calibration does not fit: no method can run
             return {"scene": name, "skipped": str(exc)}
-        except Exception as exc:  # noqa: BLE001 — a detector bug: counted and named, not fatal
-            return {"scene": name,
-                    "skipped": f"method {method} failed: {type(exc).__name__}: {exc}"}
+        except Exception as exc:  # noqa: BLE001 — a detector bug: named, not fatal
+            # that method found nothing here (its books count as missed); the other
+            # methods' scores of the scene are kept
+            record["timing_ms"][method] = 1e3 * (time.perf_counter() - t0)
+            record["methods"][method] = {**score_books(truth, [], up=up), "sources": [],
+                                         "failed": f"{type(exc).__name__}: {exc}"}
+            continue
         record["timing_ms"][method] = 1e3 * (time.perf_counter() - t0)
         dets = [Book.from_pose(obj.pose, obj.id) for obj in result.objects]
         record["methods"][method] = score_books(truth, dets, up=up)
@@ -601,15 +608,17 @@ def summarize_method(records: Iterable[Mapping[str, Any]], method: str) -> dict[
         ``recall_visible``); ``false_positives`` and ``fp_per_image``; and ``errors``: per
         error (``x y z psi_deg length width height``) the ``max``, ``mean`` and ``std`` of its
         absolute value over the matched books, with their count ``n``; ``within_1cm``: the
-        matched books within 1 cm of the truth along each of X, Y, Z (the grasp tolerance).
+        matched books within 1 cm of the truth along each of X, Y, Z (the grasp tolerance);
+        ``failed``: the images on which the method raised (their books counted as missed).
     """
-    images = books = found = vis_books = vis_found = fps = within = 0
+    images = books = found = vis_books = vis_found = fps = within = failed = 0
     errs: dict[str, list[float]] = {k: [] for k in ERROR_KEYS}
     for rec in records:
         score = rec["methods"].get(method)
         if score is None:
             continue
         images += 1
+        failed += "failed" in score
         books += len(rec["books"])
         found += sum(j is not None for j in score["found"])
         for b, j in zip(rec["books"], score["found"]):
@@ -626,7 +635,7 @@ def summarize_method(records: Iterable[Mapping[str, Any]], method: str) -> dict[
             "visible_books": vis_books, "visible_found": vis_found,
             "recall_visible": vis_found / vis_books if vis_books else None,
             "false_positives": fps, "fp_per_image": fps / images if images else None,
-            "errors": {k: _stats(v) for k, v in errs.items()}}
+            "failed": failed, "errors": {k: _stats(v) for k, v in errs.items()}}
 
 
 def summarize(records: Sequence[Mapping[str, Any]], methods: Sequence[str]) -> dict[str, Any]:
@@ -729,8 +738,10 @@ def method_table(method: str, s: Mapping[str, Any], paper: PaperTable | None) ->
              f"{_pct(s['recall_visible']).strip()} of the {s['visible_books']} at least "
              f"{VISIBLE_MIN:.0%} visible in both images)")
     fp = "-" if s["fp_per_image"] is None else f"{s['fp_per_image']:.2f}"
+    failed = (f"; failed on {s['failed']} image{'s' if s['failed'] != 1 else ''} (books "
+              "counted as missed)" if s.get("failed") else "")
     lines = [f"{_LABELS.get(method, method)} — {s['images']} images: {found}, "
-             f"{fp} false positives per image"]
+             f"{fp} false positives per image{failed}"]
     cols = f"{'X_e [m]':>9}{'Y_e [m]':>9}{'Z_e [m]':>9}{'Ψ_e [°]':>9}"
     if paper is not None:
         lines.append(f"{'':16}{'ours':^36}   | {paper.title}")
