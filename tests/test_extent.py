@@ -615,6 +615,27 @@ def test_a_side_on_its_foot_in_both_images_is_lifted_to_the_cover():
     assert extent.lift_foot(corners, Q, grads, before, desk) is None
 
 
+def test_the_detector_lifts_a_pair_only_where_no_book_is_in_either_image():
+    book = Book(center=(0.60, 0.33, 0.03), yaw_deg=20.0, size=(0.22, 0.15, 0.03),
+                cover=CoverSpec(kind="plain", albedo=0.5, seed=1))
+    r, grads, Q, rig = _rendered([book])
+    P = np.array(r.truth["books"][0]["corners"])
+    desk = np.asarray(r.truth["desk_plane"])
+    up = desk[:3] / np.linalg.norm(desk[:3])
+    s = next(k for k in (0, 2) if extent._block_shows(P, k, Q, -0.03 * up))
+    tilted = Pair(_side_on_its_foot(P, Q["left"], s), _side_on_its_foot(P, Q["right"], s),
+                  1.0, 0.0)
+    det = Detector(rig)
+    books = [(tilted, None, "tilted")]
+    lifted = det._lifted(rig, grads, books, [], desk, None)
+    assert len(lifted) == 1
+    assert np.linalg.norm(lifted[0][1].corners_world - P, axis=1).max() < 0.005  # m
+    # a book found over it in the right image only (its left quad elsewhere): not again
+    elsewhere = tilted.left + [300.0, 0.0]
+    found = [(Pair(elsewhere, geometry.project(Q["right"], P), 1.0, 0.0), lifted[0][1])]
+    assert det._lifted(rig, grads, books, found, desk, None) == []
+
+
 def test_a_sheet_on_the_desk_is_not_lifted_into_a_book():
     """A paper on the desk paired with its far side a centimetre too high (the corners
     triangulate tilted): its far edge, placed by stereo, lies on the desk, so no cover is

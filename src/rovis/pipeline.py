@@ -1283,11 +1283,15 @@ class Detector:
         book is yet: one side taken for the foot of its page block and lifted to the
         cover's height (:func:`rovis.extent.lift_foot`), the cover then passing every check."""
         overlap = self.cfg.stereo.transfer_max_overlap
-        taken = [p.left for p, _ in found]
+        taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
+
+        def over_taken(pair: Pair) -> bool:  # over a book in either image
+            return any(quad_overlap(getattr(pair, cam), t) > overlap
+                       for cam in taken for t in taken[cam])
+
         out: list[tuple[Pair, BookDetection]] = []
         for pair, book, why in books:
-            if book is not None or why not in ("tilted", "side on desk") \
-                    or any(quad_overlap(pair.left, t) > overlap for t in taken):
+            if book is not None or why not in ("tilted", "side on desk") or over_taken(pair):
                 continue
             P = geometry.triangulate(rig.Q_L, rig.Q_R, pair.left, pair.right,
                                      method=self.cfg.triangulation)
@@ -1299,9 +1303,10 @@ class Detector:
                 continue
             moved, made, _ = self._reconstruct_or_why(
                 rig, _pair_at(rig, pair, lifted), desk_plane, texture)
-            if made is None or any(quad_overlap(moved.left, t) > overlap for t in taken):
+            if made is None or over_taken(moved):
                 continue
-            taken.append(moved.left)
+            taken["left"].append(moved.left)
+            taken["right"].append(moved.right)
             out.append((moved, made))
         return out
 
