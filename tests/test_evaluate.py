@@ -228,6 +228,10 @@ def test_a_method_that_raises_loses_its_books_not_the_scene(dataset, monkeypatch
         def detect(self, left, right):
             raise RuntimeError("a bug")
 
+    class Shapes(Detector):  # a bug NumPy reports as a ValueError
+        def detect(self, left, right):
+            return np.zeros(3) + np.zeros(4)
+
     detectors = {"contour": Detector(rig, DetectConfig(method="contour")),
                  "open": Broken(rig, DetectConfig(method="open"))}
     rec = ev.score_scene(dataset / "scenes" / "0000", detectors)
@@ -240,6 +244,10 @@ def test_a_method_that_raises_loses_its_books_not_the_scene(dataset, monkeypatch
     assert broken["books"] == len(rec["books"]) > 0
     assert ev.summarize_method([rec], "contour")["failed"] == 0
     assert "failed on 1 image (books counted as missed)" in ev.method_table("open", broken, None)
+    shapes = ev.score_scene(dataset / "scenes" / "0000",
+                            {"contour": detectors["contour"], "open": Shapes(rig)})
+    assert shapes["methods"]["open"]["failed"].startswith("ValueError: operands could not")
+    assert shapes["methods"]["contour"] == rec["methods"]["contour"]  # kept, not skipped
     # and the command names it, scoring the rest
     monkeypatch.setattr(Detector, "detect", Broken.detect)
     assert main(["eval", str(dataset), "--methods", "contour", "--limit", "1"]) == 0

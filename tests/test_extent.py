@@ -502,6 +502,47 @@ def test_no_side_where_the_two_images_guess_it_apart(desk_toned_book):
     assert _complete_far(desk_toned_book, apart, P, ends_agree=0.02) is not None
 
 
+@pytest.mark.parametrize("gate", ["plain", "spread", "facing", "side_range"])
+def test_each_test_of_the_ends_can_refuse_the_side(desk_toned_book, monkeypatch, gate):
+    P = desk_toned_book[0]
+    kw = {}
+    if gate == "plain":  # edges inside: a print, or another book's side, under the cover
+        monkeypatch.setattr(extent, "strong_share", lambda *a, **k: 0.05)
+    elif gate == "spread":  # the heights stereo measured disagree
+        kw["ends_spread"] = 0.0
+    elif gate == "facing":  # a side facing the camera would show its own page block
+        monkeypatch.setattr(extent, "_block_shows", lambda *a, **k: True)
+    else:  # the guess makes a side shorter than side_range allows (one side unseen: no
+        # other side's search bounds it; the ends test passed, to reach the guess)
+        _, Q, grads, desk = desk_toned_book
+        monkeypatch.setattr(extent, "_ends_at", lambda *a, **k: True)
+        strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
+        seen = np.array([True, False, True, True])
+        corners = {cam: geometry.project(Q[cam], P) for cam in Q}
+        short = min(np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1))
+
+        def complete(lowest):
+            return complete_open(corners, {"left": seen, "right": seen}, Q, grads,
+                                 {"left": strength, "right": strength}, desk,
+                                 side_range=(lowest, 0.45))
+
+        assert complete(0.05) is not None
+        assert complete(short + 0.005) is None
+        return
+    assert _complete_far(desk_toned_book, P, P, **kw) is None
+
+
+def test_strong_share_counts_the_edges_inside_a_quad():
+    img = np.full((200, 200), 120, np.uint8)
+    quad = np.array([[40.0, 40.0], [160.0, 40.0], [160.0, 160.0], [40.0, 160.0]])
+    assert extent.strong_share(gradients(img), quad, 20.0) == 0.0  # plain
+    img[:, 100:] = 180  # a step across the middle
+    share = extent.strong_share(gradients(img), quad, 20.0)
+    assert 0.0 < share < 0.1  # a line of a few pixels' width
+    # a quad whose middle no pixel of the image holds: nothing shows it plain
+    assert extent.strong_share(gradients(img), quad + 1000.0, 20.0) == 1.0
+
+
 @pytest.mark.parametrize("seed, scene, book", [(2, 25, 3), (1, 8, 4), (1, 30, 3)])
 def test_the_pipeline_finds_books_of_the_desks_tone(seed, scene, book):
     # build/t1b's scene 25 book 3, build/t1's scene 8 book 4 and scene 30 book 3: plain
@@ -512,7 +553,7 @@ def test_the_pipeline_finds_books_of_the_desks_tone(seed, scene, book):
 
     def nearest(cfg):
         res = Detector(sc.rig, cfg).detect(r.left, r.right)
-        return min(np.abs(o.pose.center - truth).max() for o in res.objects)
+        return min((np.abs(o.pose.center - truth).max() for o in res.objects), default=np.inf)
 
     assert nearest(DetectConfig()) < 0.006  # m, along each axis
     assert nearest(DetectConfig(complete=CompleteConfig(at_ends=False))) > 0.05  # m

@@ -338,13 +338,16 @@ def score_scene(scene_dir: str | os.PathLike[str], detectors: Mapping[str, Any])
         return {"scene": name, "skipped": str(exc)}
     up = _up(doc)
     record = {"scene": name, **_scene_info(doc, truth, up), "methods": {}, "timing_ms": {}}
+    for detector in detectors.values():
+        try:
+            detector.check_input(left, right)
+        except ValueError as exc:  # images the calibration does not fit: no method can run
+            return {"scene": name, "skipped": str(exc)}
     for method, detector in detectors.items():
         detector.reset()
         t0 = time.perf_counter()
         try:
             result = detector.detect(left, right)
-        except ValueError as exc:  # images the calibration does not fit: no method can run
-            return {"scene": name, "skipped": str(exc)}
         except Exception as exc:  # noqa: BLE001 — a detector bug: named, not fatal
             # that method found nothing here (its books count as missed); the other
             # methods' scores of the scene are kept

@@ -858,9 +858,9 @@ class CompleteConfig:
     heights from the desk up to ``max_height`` are tried every ``height_step``, then every
     quarter of that within half a step of the best.
 
-    ``at_ends`` (beyond the paper): an unseen side that shows no step anywhere within
-    ``search`` in both images (a cover of the desk's tone, its far sides against the desk)
-    stays where the two images' seen sides end, if those ends agree within
+    ``at_ends`` (beyond the paper): an unseen side no offset of which within ``search`` is
+    a step in both images at once (a cover of the desk's tone, its far sides against the
+    desk) stays where the two images' seen sides end, if those ends agree within
     ``ends_agree``; only where stereo places a corner of two seen sides, every height
     measured within ``ends_spread`` of the others; the side facing away from the camera
     (no page block of its own to show); the seen sides next to it edges up to its corners
@@ -934,7 +934,8 @@ def complete_open(corners: dict[str, NDArray[np.float64]], seen: dict[str, NDArr
     -------
     ndarray, shape (4, 3) or None
         World corners in the same order, or None: fewer than two sides seen, none unseen,
-        no height, or an unseen side with no step in both images.
+        no height, or an unseen side with no step in both images (but see
+        ``CompleteConfig.at_ends``).
     """
     anchored = np.asarray(seen["left"], bool) | np.asarray(seen["right"], bool)
     if anchored.sum() < 2 or anchored.all():
@@ -1018,7 +1019,8 @@ def _place(h: float, corners: dict[str, NDArray[np.float64]],
            at_ends: bool = False) -> tuple[NDArray[np.float64], float] | None:
     """:func:`complete_open`'s rectangle at cover height ``h``: its corners (4, 3) and the
     summed strength of its unseen sides (units of ``strength``), or None; the unseen sides
-    looked for every ``step`` (default ``cfg.step``)."""
+    looked for every ``step`` (default ``cfg.step``). With ``at_ends``, an unseen side no
+    offset of which is a step in both images may stay at its guess (:func:`_at_ends`)."""
     cams = ("left", "right")
     on_desk, up, e1, e2 = _plane_frame(desk_plane)
     origin = on_desk + h * up
@@ -1079,16 +1081,12 @@ def _place(h: float, corners: dict[str, NDArray[np.float64]],
                 return None
             edge, score = _side_scores(P[idx], s, (s + 1) % 4, Q, grads, strength, limits)
             if not edge.any():
-                # no step anywhere near (a cover of the desk's tone against the desk): the
-                # side stays where both images' seen sides end, where those ends agree
-                apart = [normal[s] @ (0.5 * (g[s] + g[(s + 1) % 4])) for g in guesses.values()]
-                here = corners_at(offset[None])[0]
-                if not at_ends or abs(apart[0] - apart[1]) > cfg.ends_agree or not (
-                        not _block_shows(here, s, Q, -h * up)
-                        and _ends_at(here, s, fitted, Q, grads, strength, limits)
-                        and all(strong_share(grads[cam], geometry.project(Q[cam], here),
-                                             2.0 * strength[cam]) <= cfg.plain_share
-                                for cam in cams)):
+                # no offset a step in both images at once (a cover of the desk's tone
+                # against the desk): the side may stay at its guess (d = 0), where both
+                # images' seen sides end (complete_open's at_ends)
+                if not (at_ends and int(np.argmin(np.abs(d))) in idx
+                        and _at_ends(corners_at(offset[None])[0], s, fitted, guesses,
+                                     normal[s], h * up, Q, grads, strength, limits, cfg)):
                     return None
                 continue
             full = np.full(len(d), -np.inf)  # the score of every offset that is an edge
@@ -1105,6 +1103,29 @@ def _place(h: float, corners: dict[str, NDArray[np.float64]],
             offset[s] = o[k, s]
             total += float(full[k])
     return corners_at(offset[None])[0], total
+
+
+def _at_ends(P: NDArray[np.float64], s: int, fitted: list[int],
+             guesses: dict[str, NDArray[np.float64]], normal: NDArray[np.float64],
+             lift: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
+             grads: dict[str, Gradients], strength: dict[str, float], limits: ExtentConfig,
+             cfg: CompleteConfig) -> bool:
+    """Whether unseen side ``s`` of :func:`_place`'s rectangle ``P`` (4, 3), at its guess,
+    may stay there with no step (:class:`CompleteConfig`'s ``at_ends``): the two images'
+    guesses of it (``guesses``, corners (4, 2) on the cover's plane; ``normal``: the side's
+    in that plane) within ``cfg.ends_agree``; the side facing away from the cameras (the
+    page block below it hidden: ``lift`` is the cover's height times the desk's normal);
+    the seen sides beside it ending at its corners (:func:`_ends_at`); and the cover plain
+    inside in both images (:func:`strong_share` at the Canny low threshold)."""
+    apart = [normal @ (0.5 * (g[s] + g[(s + 1) % 4])) for g in guesses.values()]
+    if abs(apart[0] - apart[1]) > cfg.ends_agree or _block_shows(P, s, Q, -lift):
+        return False
+    if not _ends_at(P, s, fitted, Q, grads, strength, limits):
+        return False
+    # strength is cfg.threshold_ratio of each image's Canny low threshold
+    return all(strong_share(grads[cam], geometry.project(Q[cam], P),
+                            strength[cam] / cfg.threshold_ratio) <= cfg.plain_share
+               for cam in Q)
 
 
 def _ends_at(P: NDArray[np.float64], s: int, fitted: list[int], Q: dict[str, NDArray[np.float64]],
@@ -1143,6 +1164,14 @@ def strong_share(grad: Gradients, quad: NDArray[np.float64], min_gradient: float
         Ideal pixel corners.
     min_gradient : float
         Sobel units.
+    inset : float
+        The share of the quad's size (about its centre) looked at: its sides' own edges
+        left out.
+
+    Returns
+    -------
+    float
+        In [0, 1]; 1 where the middle holds no pixel of the image (nothing shows it plain).
     """
     q = np.asarray(quad, dtype=np.float64)
     q = q.mean(axis=0) + inset * (q - q.mean(axis=0))
@@ -1154,7 +1183,8 @@ def strong_share(grad: Gradients, quad: NDArray[np.float64], min_gradient: float
     dx = grad.dx[y0:y1, x0:x1].astype(np.float32)
     dy = grad.dy[y0:y1, x0:x1].astype(np.float32)
     strong = (dx * dx + dy * dy >= min_gradient ** 2) & (inside > 0)
-    return np.count_nonzero(strong) / max(np.count_nonzero(inside), 1)
+    n_inside = np.count_nonzero(inside)
+    return np.count_nonzero(strong) / n_inside if n_inside else 1.0
 
 
 def lift_foot(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],

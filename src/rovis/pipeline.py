@@ -730,6 +730,16 @@ class Detector:
                 tex[self._view.valid[cam] == 0] = 0.0
         return out
 
+    def check_input(self, left: NDArray[np.generic], right: NDArray[np.generic]) -> None:
+        """Raise what :meth:`detect` raises for images it cannot take (empty, of an
+        unsupported type, of different sizes or not the calibration's), without detecting.
+
+        Raises
+        ------
+        ValueError
+        """
+        self._check_sizes(to_gray_u8(left, "left image"), to_gray_u8(right, "right image"))
+
     def _check_sizes(self, left: NDArray[np.uint8], right: NDArray[np.uint8]) -> None:
         if left.shape != right.shape:
             raise ValueError(f"image sizes differ: left {left.shape[1]}x{left.shape[0]}, "
@@ -916,11 +926,12 @@ class Detector:
         def worth(cam: str, k: int) -> bool:
             if (cam, k) not in plausible:
                 quad = pool[cam].corners[k]
-                ev = side_evidence(grads[cam], quad, evidence * strength[cam], reach_px=3.0)
+                ev = (side_evidence(grads[cam], quad, evidence * strength[cam], reach_px=3.0)
+                      if two_open(pool[cam], k) else None)
                 # ...but a plain one whose two sides are clear may be a cover of the desk's
                 # tone, its far sides against the desk: completed where those sides end
-                plausible[cam, k] = not two_open(pool[cam], k) or ev.min() >= 0.3 or (
-                    cfg.complete.at_ends
+                plausible[cam, k] = ev is None or ev.min() >= 0.3 or (
+                    cfg.complete.enabled and cfg.complete.at_ends
                     and ev[pool[cam].lines[k] >= 0].min() >= 0.9
                     and strong_share(grads[cam], quad, strength[cam]) <= cfg.complete.plain_share)
             return plausible[cam, k]
@@ -1821,7 +1832,7 @@ class Detector:
             fits = {cam: [None if k == s else (q[k], _unit(q[(k + 1) % 4] - q[k]))
                           for k in range(4)] for cam, q in corners.items()}
             P = complete_open(corners, {cam: np.arange(4) != s for cam in Q}, Q, grads,
-                              strength, desk_plane, cfg.complete,
+                              strength, desk_plane, replace(cfg.complete, at_ends=False),
                               height_range=(max(cfg.stereo.min_height, h - cfg.unskew_height),
                                             min(cfg.stereo.max_cover_height,
                                                 h + cfg.unskew_height)),
