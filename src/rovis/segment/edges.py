@@ -42,21 +42,38 @@ class Gradients:
     def sample(self, x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Bilinear dx, dy at float pixel positions (any shape); 0 outside the image."""
         h, w = self.shape
-        x0 = np.floor(x).astype(np.intp)
-        y0 = np.floor(y).astype(np.intp)
-        fx, fy = x - x0, y - y0
-        inside = (x0 >= 0) & (y0 >= 0) & (x0 < w - 1) & (y0 < h - 1)
-        # flat index of each top-left neighbour (0 outside: read, then masked); flat
-        # gathers cost a fraction of 2-D fancy indexing
-        at = np.where(inside, y0 * w + x0, 0)
+        x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+        if x.shape != y.shape:
+            x, y = np.broadcast_arrays(x, y)
+        xf, yf = np.floor(x), np.floor(y)
+        x0, y0 = xf.astype(np.intp), yf.astype(np.intp)
+        # 0 <= v < size - 1 as one unsigned comparison (a negative v wraps to a huge one)
+        inside = x0.view(np.uintp) < w - 1
+        inside &= y0.view(np.uintp) < h - 1
+        # flat index of each top-left neighbour (0 outside: read, then masked); the four
+        # neighbours of dx and dy in two flat gathers, (dx or dy, neighbour, sample): a
+        # fraction of the cost of eight
+        at = y0 * w
+        at += x0
+        at *= inside
+        at = at.reshape(1, -1) + np.array([[0], [1], [w], [w + 1]])
+        g = np.empty((2,) + at.shape, self.dx.dtype)
+        np.take(self.dx.reshape(-1), at, out=g[0], mode="wrap")  # (no out-of-range index)
+        np.take(self.dy.reshape(-1), at, out=g[1], mode="wrap")
+        # x - floor(x): x - x0 where it matters (inside), without the int-to-float cast
+        fx, fy = x.reshape(-1) - xf.reshape(-1), y.reshape(-1) - yf.reshape(-1)
         wx, wy = 1 - fx, 1 - fy
-        out = []
-        for g in (self.dx, self.dy):
-            flat = g.ravel()
-            v = ((flat[at] * wx + flat[at + 1] * fx) * wy
-                 + (flat[at + w] * wx + flat[at + w + 1] * fx) * fy)
-            out.append(np.where(inside, v, 0.0))
-        return out[0], out[1]
+        # dx and dy at once, in the same order of operations as one at a time:
+        # (g00·wx + g01·fx)·wy + (g10·wx + g11·fx)·fy
+        top = g[:, 0] * wx
+        top += g[:, 1] * fx
+        top *= wy
+        bottom = g[:, 2] * wx
+        bottom += g[:, 3] * fx
+        bottom *= fy
+        top += bottom
+        v = np.where(inside.reshape(-1), top, 0.0)
+        return v[0].reshape(x.shape), v[1].reshape(x.shape)
 
 
 def gradients(gray: NDArray[np.uint8], mask: NDArray[np.uint8] | None = None, *,
