@@ -487,9 +487,11 @@ def refine_segment(grad: Gradients, p_a: NDArray[np.float64], p_b: NDArray[np.fl
         return None
     point, d = 0.5 * (p_a + p_b), (p_b - p_a) / length
     offsets = np.arange(-half_width, half_width + 0.5, 1.0)
+    t = np.arange(-0.5 * length + trim, 0.5 * length - trim + 0.5, 1.0)
+    width = len(offsets)
+    mid = width // 2
     for _ in range(iterations):
         n = np.array([-d[1], d[0]])
-        t = np.arange(-0.5 * length + trim, 0.5 * length - trim + 0.5, 1.0)
         base = point + t[:, None] * d  # (S, 2)
         xs = base[:, None, 0] + offsets[None, :] * n[0]
         ys = base[:, None, 1] + offsets[None, :] * n[1]
@@ -497,21 +499,28 @@ def refine_segment(grad: Gradients, p_a: NDArray[np.float64], p_b: NDArray[np.fl
         g = gx * n[0] + gy * n[1]  # derivative across the side, (S, O)
         # One side of a boundary is brighter all along it; judge which from the columns at
         # the line itself, not the window, which may reach a stronger neighbouring edge.
-        mid = len(offsets) // 2
-        sign = np.sign(np.sum(g[:, mid - 1:mid + 2]))
-        g = g * (sign if sign != 0 else 1.0)
+        sign = np.sign(g[:, mid - 1:mid + 2].sum())
+        if sign < 0:  # (times 1: the same values)
+            g = g * sign
         k = np.argmax(g, axis=1)
-        interior = (k > 0) & (k < len(offsets) - 1)
-        rows = np.nonzero(interior)[0]
-        k = k[rows]
-        g0, g1, g2 = g[rows, k - 1], g[rows, k], g[rows, k + 1]
+        interior = (k > 0) & (k < width - 1)
+        rows = np.flatnonzero(interior)
+        # flat indices of each row's peak: 1-D gathers, cheaper than (rows, k) pairs
+        at = rows * width
+        at += k[rows]
+        flat = g.reshape(-1)
+        g1 = flat[at]
         strong = g1 > 0.5 * _median(g1) if len(g1) else np.zeros(0, bool)
+        # the parabola through the peak and its neighbours, for the strong rows only (the
+        # others are dropped: the same points)
+        at, g1 = at[strong], g1[strong]
+        g0, g2 = flat[at - 1], flat[at + 1]
         denom = g0 - 2 * g1 + g2
-        with np.errstate(divide="ignore", invalid="ignore"):
-            delta = np.where(denom < 0, 0.5 * (g0 - g2) / denom, 0.0)
-        offs = offsets[k] + np.clip(delta, -0.5, 0.5)
-        pts = base[rows] + offs[:, None] * n
-        pts = pts[strong]
+        delta = np.zeros(len(at))
+        np.divide(0.5 * (g0 - g2), denom, out=delta, where=denom < 0)
+        # clip to ±0.5 (np.clip's values, without its wrapper's cost)
+        offs = offsets[at % width] + np.minimum(np.maximum(delta, -0.5), 0.5)
+        pts = base[at // width] + offs[:, None] * n
         if len(pts) < max(6, 0.3 * len(t)):
             return None
         fit = _fit_line(pts)
@@ -532,7 +541,7 @@ def refine_segment(grad: Gradients, p_a: NDArray[np.float64], p_b: NDArray[np.fl
 def _fit_line(pts: NDArray[np.float64], *, outlier_px: float = 1.0) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
     """Total-least-squares line through ``pts`` (M, 2), refit once without > outlier_px points."""
     for _ in range(2):
-        c = pts.mean(axis=0)
+        c = pts.sum(axis=0) / len(pts)  # pts.mean(axis=0), without its wrapper's cost
         x, y = pts[:, 0] - c[0], pts[:, 1] - c[1]
         # the principal axis of the 2x2 scatter in closed form (what an SVD of the
         # centred points gives, at a fraction of its cost on a few hundred points)
@@ -540,7 +549,8 @@ def _fit_line(pts: NDArray[np.float64], *, outlier_px: float = 1.0) -> tuple[NDA
         d = np.array([np.cos(angle), np.sin(angle)])
         resid = np.abs(x * -d[1] + y * d[0])
         inliers = resid < max(outlier_px, 2.5 * _median(resid))
-        if inliers.all() or inliers.sum() < 6:
+        kept = np.count_nonzero(inliers)
+        if kept == len(pts) or kept < 6:
             break
         pts = pts[inliers]
     return c, d
