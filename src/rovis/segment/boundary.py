@@ -548,6 +548,8 @@ def side_evidence(grad: Gradients, corners: NDArray[np.float64], threshold: floa
     """
     out = np.zeros(4)
     offsets = np.arange(-reach_px, reach_px + 1e-9, 0.5)
+    # the four sides' samples side by side, (offsets, their pixels): one sample call
+    xs, ys, nx, ny, sides, counts = [], [], [], [], [], []
     for s in range(4):
         a, b = corners[s], corners[(s + 1) % 4]
         length = float(np.linalg.norm(b - a))
@@ -557,11 +559,20 @@ def side_evidence(grad: Gradients, corners: NDArray[np.float64], threshold: floa
         d = (b - a) / length
         n = np.array([-d[1], d[0]])
         p = a + t[:, None] * d  # (T, 2)
-        x = p[None, :, 0] + offsets[:, None] * n[0]
-        y = p[None, :, 1] + offsets[:, None] * n[1]
-        gx, gy = grad.sample(x, y)  # (offsets, T)
-        strong = np.abs(gx * n[0] + gy * n[1]) >= threshold
-        out[s] = float(strong.mean(axis=1).max())
+        xs.append(p[None, :, 0] + offsets[:, None] * n[0])
+        ys.append(p[None, :, 1] + offsets[:, None] * n[1])
+        nx.append(np.full(len(t), n[0]))
+        ny.append(np.full(len(t), n[1]))
+        sides.append(s)
+        counts.append(len(t))
+    if not sides:
+        return out
+    gx, gy = grad.sample(np.hstack(xs), np.hstack(ys))  # (offsets, ΣT)
+    strong = np.abs(gx * np.hstack(nx) + gy * np.hstack(ny)) >= threshold
+    # each side's share per offset: whole counts over its length, strong.mean(axis=1)'s values
+    starts = np.cumsum([0] + counts[:-1])
+    hits = np.add.reduceat(strong, starts, axis=1, dtype=np.intp)  # (offsets, sides)
+    out[sides] = (hits / np.array(counts)).max(axis=0)
     return out
 
 
