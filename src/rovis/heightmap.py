@@ -156,14 +156,18 @@ def height_map(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Array
     on_desk, n, e1, e2 = _plane_frame(desk_plane)
     win = (cfg.window_px, cfg.window_px)
 
-    def mean(img: NDArray[np.float32]) -> NDArray[np.float32]:
-        return cv2.boxFilter(img, -1, win, borderType=cv2.BORDER_REFLECT)
+    def mean(img: NDArray[np.float32],
+             out: NDArray[np.float32] | None = None) -> NDArray[np.float32]:
+        return cv2.boxFilter(img, -1, win, dst=out, borderType=cv2.BORDER_REFLECT)
 
     shift = np.array([[1.0, 0.0, x0], [0.0, 1.0, y0], [0.0, 0.0, 1.0]])  # crop → image
     m_l = mean(crop)
     v_l = mean(crop * crop) - m_l * m_l
     best = np.full(crop.shape, -np.inf, np.float32)
-    arg = np.zeros(crop.shape, np.int32)
+    # the index of the best height so far (the first of equals), and buffers for it
+    arg = np.zeros(crop.shape, np.uint8 if len(heights) <= 256 else np.int32)
+    beats = np.empty(crop.shape, np.bool_)
+    index = np.empty_like(arg)
 
     def crop_to_right(h: float) -> NDArray[np.float64]:
         origin = on_desk + h * n
@@ -172,21 +176,26 @@ def height_map(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Array
 
     # the same arithmetic as ncc = (mean(l·r) − m_l·m_r) / sqrt(max(v_l·v_r, 1e-6)), in
     # place: a fresh array per step and height was half the sweep's time
-    tmp = np.empty_like(crop)
+    tmp, warped, m_r, v_r, num = (np.empty_like(crop) for _ in range(5))
+    least = np.full(crop.shape, 1e-6, np.float32)  # (np.maximum is 3x slower with a scalar)
     for k, h in enumerate(heights):
         H = crop_to_right(float(h))
-        warped = cv2.warpPerspective(right, H, crop.shape[::-1],
-                                     flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
-        m_r = mean(warped)
-        v_r = mean(np.multiply(warped, warped, out=tmp))
+        cv2.warpPerspective(right, H, crop.shape[::-1], dst=warped,
+                            flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
+        mean(warped, m_r)
+        mean(np.multiply(warped, warped, out=tmp), v_r)
         v_r -= np.multiply(m_r, m_r, out=tmp)
-        num = mean(np.multiply(crop, warped, out=tmp))
+        mean(np.multiply(crop, warped, out=tmp), num)
         num -= np.multiply(m_l, m_r, out=tmp)
         np.multiply(v_l, v_r, out=tmp)
-        np.maximum(tmp, 1e-6, out=tmp)
+        np.maximum(tmp, least, out=tmp)
         np.sqrt(tmp, out=tmp)
         ncc = np.divide(num, tmp, out=num)
-        np.copyto(arg, k, where=ncc > best)
+        # arg = k where ncc beats best: k is above every index so far, so that is the
+        # larger of arg and k·beats (a masked copy costs ten times as much)
+        np.greater(ncc, best, out=beats)
+        np.maximum(arg, np.multiply(beats.view(np.uint8), arg.dtype.type(k), out=index),
+                   out=arg)
         np.fmax(best, ncc, out=best)  # a NaN (none expected) leaves best as it was
     # the epipolar direction at the box's centre: where the heights move a pixel
     centre = np.array([0.5 * (x1 - x0), 0.5 * (y1 - y0), 1.0])
