@@ -534,7 +534,7 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
         to_plane = np.linalg.inv(plane_homography(Q_L, origin, e1, e2)) @ shift  # → (u, v)
         for c in np.flatnonzero(per_patch[1:] >= cfg.min_pixels) + 1:
             ys, xs = np.divmod(at[label == c], width)
-            uv = _apply(to_plane, np.column_stack([xs, ys]).astype(np.float64))
+            uv = _apply(to_plane, np.column_stack([xs, ys]))
             # (a window straddling a cover's edge agrees at the cover's height and one at
             # the desk's: the patch ends about at the edge, and the sides are snapped later)
             (cu, cv_), (a, b), angle = cv2.minAreaRect(uv.astype(np.float32))
@@ -557,7 +557,9 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
 
 def _apply(H: NDArray[np.float64], p: NDArray[np.float64]) -> NDArray[np.float64]:
     """Points (N, 2) through homography H."""
-    q = np.column_stack([p, np.ones(len(p))]) @ H.T
+    q = np.ones((len(p), 3))  # (p, 1) as float64, in one array
+    q[:, :2] = p
+    q = q @ H.T
     return q[:, :2] / q[:, 2:]
 
 
@@ -567,6 +569,7 @@ def _outline_fill(uv: NDArray[np.float64], rect: NDArray[np.float64], band: floa
     points within ``band`` of it or inside: a cover's outline fills it, a stray blob does
     not."""
     fill = []
+    centre = rect.mean(axis=0)
     for k in range(4):
         a, b = rect[k], rect[(k + 1) % 4]
         length = float(np.linalg.norm(b - a))
@@ -576,10 +579,13 @@ def _outline_fill(uv: NDArray[np.float64], rect: NDArray[np.float64], band: floa
         normal = np.array([-d[1], d[0]])
         rel = uv - a
         t, s = rel @ d, rel @ normal
-        inward = 1.0 if (rect.mean(axis=0) - a) @ normal > 0 else -1.0
-        near = (t >= 0) & (t <= length) & (s * inward >= -band) & (s * inward <= 2 * band)
-        cells = np.unique(np.floor(t[near] / cell).astype(int))
-        fill.append(len(cells) / max(int(np.ceil(length / cell)), 1))
+        s *= 1.0 if (centre - a) @ normal > 0 else -1.0  # inward positive
+        near = (t >= 0) & (t <= length) & (s >= -band) & (s <= 2 * band)
+        # the cells with a point (0 <= t <= length: cell ceil(length / cell) at most)
+        n_cells = max(int(np.ceil(length / cell)), 1)
+        seen = np.zeros(n_cells + 1, np.bool_)
+        seen[np.floor(t[near] / cell).astype(int)] = True
+        fill.append(np.count_nonzero(seen) / n_cells)
     return float(np.mean(fill))
 
 
