@@ -170,19 +170,12 @@ def sweep_heights(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Ar
     if quad.shape != (4, 2):
         raise ValueError(f"quad_left: expected shape (4, 2), got {quad.shape}")
     h_img, w_img = left.shape
-    x0, y0 = np.maximum(np.floor(quad.min(axis=0)).astype(int), 0)
-    x1, y1 = np.minimum(np.ceil(quad.max(axis=0)).astype(int) + 1, [w_img, h_img])
-    if x1 - x0 < 8 or y1 - y0 < 8:
+    # (a cover is swept again and again: texture_height sweeps it twice, each step's
+    # checks once more)
+    samples = _samples_of(quad.tobytes(), left.shape, inset, max_samples)
+    if samples is None:
         return None
-    mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    cv2.fillConvexPoly(mask, np.rint(quad - [x0, y0]).astype(np.int32), 255)
-    sides = np.linalg.norm(quad - np.roll(quad, -1, axis=0), axis=1)
-    k = 2 * max(1, int(round(inset * sides.min() / 2))) + 1
-    ys, xs = np.nonzero(cv2.erode(mask, np.ones((k, k), np.uint8)))
-    if len(xs) < 50:
-        return None
-    keep = np.linspace(0, len(xs) - 1, min(len(xs), max_samples)).astype(np.intp)
-    xs, ys = xs[keep] + x0, ys[keep] + y0
+    xs, ys = samples
 
     # Each left pixel through each plane into the right image: a plane's homography to the
     # left pixels (H_L) and to the right (H_R) give right ← left = H_R · H_L⁻¹.
@@ -199,18 +192,48 @@ def sweep_heights(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Ar
     map_y = (q[:, 1] / q[:, 2]).astype(np.float32)
     # only the pixels seen in the right image at every height (the border is no texture)
     seen = np.all((map_x >= 0) & (map_x <= w_img - 1) & (map_y >= 0) & (map_y <= h_img - 1), axis=0)
-    if seen.sum() < 0.9 * len(xs):
+    n_seen = int(np.count_nonzero(seen))
+    if n_seen < 0.9 * len(xs):
         return None
-    a = left[ys[seen], xs[seen]].astype(np.float64)
+    if n_seen < len(xs):  # (mostly all are: then no copies)
+        xs, ys, map_x, map_y = xs[seen], ys[seen], map_x[:, seen], map_y[:, seen]
+    a = left[ys, xs].astype(np.float64)
     sa = a.std()
     if sa <= 0:
         return None
     a = (a - a.mean()) / (sa * a.size)
-    map_x, map_y = map_x[:, seen], map_y[:, seen]
     b = cv2.remap(right, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT).astype(np.float64)
-    sb = b.std(axis=1)
-    ncc = np.where(sb > 0, (b - b.mean(axis=1, keepdims=True)) @ a / np.maximum(sb, 1e-12), 0.0)
+    centred = b - b.mean(axis=1, keepdims=True)
+    # b.std(axis=1) as NumPy computes it (the same bits), from the centred values kept
+    sb = np.sqrt(np.add.reduce(centred * centred, axis=1) / b.shape[1])
+    ncc = np.where(sb > 0, centred @ a / np.maximum(sb, 1e-12), 0.0)
     return Sweep(heights, ncc)
+
+
+@lru_cache(maxsize=64)
+def _samples_of(quad: bytes, shape: tuple[int, int], inset: float, max_samples: int,
+                ) -> tuple[NDArray[np.intp], NDArray[np.intp]] | None:
+    """The left pixels :func:`sweep_heights` compares for the quad whose (4, 2) float64
+    corners are ``quad``, in an image of ``shape``: (xs, ys), read-only; None where the
+    quad is too small or has fewer than 50 pixels inside its inset."""
+    corners = np.frombuffer(quad, dtype=np.float64).reshape(4, 2)
+    h_img, w_img = shape
+    x0, y0 = np.maximum(np.floor(corners.min(axis=0)).astype(int), 0)
+    x1, y1 = np.minimum(np.ceil(corners.max(axis=0)).astype(int) + 1, [w_img, h_img])
+    if x1 - x0 < 8 or y1 - y0 < 8:
+        return None
+    mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    cv2.fillConvexPoly(mask, np.rint(corners - [x0, y0]).astype(np.int32), 255)
+    sides = np.linalg.norm(corners - corners[[1, 2, 3, 0]], axis=1)
+    k = 2 * max(1, int(round(inset * sides.min() / 2))) + 1
+    ys, xs = np.nonzero(cv2.erode(mask, np.ones((k, k), np.uint8)))
+    if len(xs) < 50:
+        return None
+    keep = np.linspace(0, len(xs) - 1, min(len(xs), max_samples)).astype(np.intp)
+    xs, ys = xs[keep] + x0, ys[keep] + y0
+    for v in (xs, ys):  # shared by every caller
+        v.setflags(write=False)
+    return xs, ys
 
 
 def find_by_print(tex_src: NDArray[np.float32], tex_dst: NDArray[np.float32], Q_src: ArrayLike,
