@@ -513,10 +513,14 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
     shift = np.array([[1.0, 0.0, x0], [0.0, 1.0, y0], [0.0, 0.0, 1.0]])  # crop → image
     # the valid pixels (row by row) and their heights: each slab is picked from these
     at_valid = np.flatnonzero(valid)
-    valid_height = height.ravel()[at_valid].astype(np.float64)
+    valid_height = height.ravel()[at_valid]
     width = height.shape[1]
     for h in hm.heights[(hm.heights >= cfg.raised) & (hm.heights < hm.heights[-1] - 0.5 * cfg.step)]:
-        at = at_valid[np.abs(valid_height - h) <= cfg.slab]  # the slab's pixels, row by row
+        bounds = _slab_bounds(float(h), cfg.slab) if height.dtype == np.float32 else None
+        if bounds is None:
+            at = at_valid[np.abs(valid_height.astype(np.float64) - h) <= cfg.slab]
+        else:  # the same pixels (the slab's, row by row)
+            at = at_valid[(valid_height >= bounds[0]) & (valid_height <= bounds[1])]
         if len(at) < cfg.min_pixels:
             continue
         slab = np.zeros(height.shape, np.uint8)
@@ -553,6 +557,36 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
         if not any(quad_overlap(item[4], k[4]) > 0.5 for k in kept):
             kept.append(item)
     return [(corners, h, fill) for _, corners, h, fill, _ in kept]
+
+
+def _slab_bounds(h: float, slab: float) -> tuple[np.float32, np.float32] | None:
+    """The least and the greatest float32 height v with |v − h| <= slab in float64 (as
+    ``np.abs(v.astype(np.float64) - h) <= slab`` reads it); None where the slab is too
+    thin to find them. v − h rounds monotonically, so the heights within are the ones
+    between the two: a slab is picked by comparing the float32 map with them (cheaper)."""
+
+    def within(v: np.float32) -> bool:
+        return abs(float(v) - h) <= slab
+
+    def walk(v: np.float32, inward: np.float32, outward: np.float32) -> np.float32 | None:
+        # float32(h ± slab) lies a step or two from the bound (near 0, where float32 is
+        # much finer than h's float64, it may not: None)
+        for _ in range(4):
+            if within(v):
+                break
+            v = np.nextafter(v, inward)
+        else:
+            return None
+        for _ in range(4):
+            step = np.nextafter(v, outward)
+            if not within(step):
+                return v
+            v = step
+        return None
+
+    up, down = np.float32(np.inf), np.float32(-np.inf)
+    lo, hi = walk(np.float32(h - slab), up, down), walk(np.float32(h + slab), down, up)
+    return None if lo is None or hi is None else (lo, hi)
 
 
 def _apply(H: NDArray[np.float64], p: NDArray[np.float64]) -> NDArray[np.float64]:
