@@ -892,6 +892,7 @@ def complete_open(corners: dict[str, NDArray[np.float64]], seen: dict[str, NDArr
                   side_range: tuple[float, float] = (0.048, 0.45),
                   fits: dict[str, list[Fit | None]] | None = None,
                   print_height: Callable[[], float | None] | None = None,
+                  ends_refused: Callable[[NDArray[np.float64]], bool] | None = None,
                   ) -> NDArray[np.float64] | None:
     """A cover candidate with sides unseen, completed to a rectangle on the desk's parallel.
 
@@ -929,6 +930,9 @@ def complete_open(corners: dict[str, NDArray[np.float64]], seen: dict[str, NDArr
         strong an edge as the cover's: with no height the sweep below may place the
         unseen sides on the feet, at the desk (build/t2 scene 13's photo cover, 14 mm
         high, came out at 4 mm).
+    ends_refused : callable, optional
+        Given a rectangle (4, 3), whether ``cfg.at_ends`` may not give it (the pipeline:
+        two of its sides other books' edges, the desk between them).
 
     Returns
     -------
@@ -977,7 +981,7 @@ def complete_open(corners: dict[str, NDArray[np.float64]], seen: dict[str, NDArr
         # stereo places a corner, every height agreeing
         at_ends = cfg.at_ends and at_corner and float(np.ptp(estimates)) <= cfg.ends_spread
         placed = _place(h, corners, fits, Q, grads, strength, desk_plane, cfg, side_range,
-                        at_ends=at_ends)
+                        at_ends=at_ends, ends_refused=ends_refused)
         return None if placed is None else placed[0]
     # Two opposite sides along the epipolar lines (stereo cannot place them), their ends
     # where each image's edges happen to stop: no height. The cover's print tells it where
@@ -1016,11 +1020,14 @@ def _place(h: float, corners: dict[str, NDArray[np.float64]],
            Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
            strength: dict[str, float], desk_plane: NDArray[np.float64],
            cfg: CompleteConfig, side_range: tuple[float, float], step: float | None = None,
-           at_ends: bool = False) -> tuple[NDArray[np.float64], float] | None:
+           at_ends: bool = False,
+           ends_refused: Callable[[NDArray[np.float64]], bool] | None = None,
+           ) -> tuple[NDArray[np.float64], float] | None:
     """:func:`complete_open`'s rectangle at cover height ``h``: its corners (4, 3) and the
     summed strength of its unseen sides (units of ``strength``), or None; the unseen sides
     looked for every ``step`` (default ``cfg.step``). With ``at_ends``, an unseen side no
-    offset of which is a step in both images may stay at its guess (:func:`_at_ends`)."""
+    offset of which is a step in both images may stay at its guess (:func:`_at_ends`),
+    unless ``ends_refused`` says no to the rectangle it makes."""
     cams = ("left", "right")
     on_desk, up, e1, e2 = _plane_frame(desk_plane)
     origin = on_desk + h * up
@@ -1086,7 +1093,9 @@ def _place(h: float, corners: dict[str, NDArray[np.float64]],
                 # images' seen sides end (complete_open's at_ends)
                 if not (at_ends and int(np.argmin(np.abs(d))) in idx
                         and _at_ends(corners_at(offset[None])[0], s, fitted, guesses,
-                                     normal[s], h * up, Q, grads, strength, limits, cfg)):
+                                     normal[s], h * up, Q, grads, strength, limits, cfg)
+                        and not (ends_refused is not None
+                                 and ends_refused(corners_at(offset[None])[0]))):
                     return None
                 continue
             full = np.full(len(d), -np.inf)  # the score of every offset that is an edge

@@ -881,6 +881,8 @@ class Detector:
         """
         cfg = self.cfg
         overlap = cfg.stereo.transfer_max_overlap
+        Q = {"left": rig.Q_L, "right": rig.Q_R}
+        up = desk_plane / np.linalg.norm(desk_plane[:3])
         # the full candidates and those with one side unseen (Segmentation.open_pool),
         # then the small and the late pool: a refined quad is cached by its index in this
         # order, the same in every pass
@@ -922,18 +924,23 @@ class Detector:
         # most two-sided candidates show no step anywhere near their guessed sides: those
         # are not worth a refinement (a coarse look first: within 3 px, along 30 %)
         plausible: dict[tuple[str, int], bool] = {}
+        let_in: set[tuple[str, int]] = set()  # the candidates only the plain rule let in
 
         def worth(cam: str, k: int) -> bool:
             if (cam, k) not in plausible:
                 quad = pool[cam].corners[k]
                 ev = (side_evidence(grads[cam], quad, evidence * strength[cam], reach_px=3.0)
                       if two_open(pool[cam], k) else None)
+                plausible[cam, k] = ev is None or ev.min() >= 0.3
                 # ...but a plain one whose two sides are clear may be a cover of the desk's
                 # tone, its far sides against the desk: completed where those sides end
-                plausible[cam, k] = ev is None or ev.min() >= 0.3 or (
-                    cfg.complete.enabled and cfg.complete.at_ends
-                    and ev[pool[cam].lines[k] >= 0].min() >= 0.9
-                    and strong_share(grads[cam], quad, strength[cam]) <= cfg.complete.plain_share)
+                if not plausible[cam, k] and (
+                        cfg.complete.enabled and cfg.complete.at_ends
+                        and ev[pool[cam].lines[k] >= 0].min() >= 0.9
+                        and strong_share(grads[cam], quad, strength[cam])
+                        <= cfg.complete.plain_share):
+                    plausible[cam, k] = True
+                    let_in.add((cam, k))
             return plausible[cam, k]
 
         keep = np.flatnonzero([worth("left", a) and worth("right", b)
@@ -1023,6 +1030,12 @@ class Detector:
         def completable(a: int) -> bool:  # a side neither image saw
             return cfg.complete.enabled and not all_seen(a)
 
+        def between_books(P: NDArray[np.float64]) -> bool:
+            # the desk between books found: two sides of the rectangle (4, 3) theirs
+            return any(_sides_on(geometry.project(Q[cam], P),
+                                 _outlines(Q[cam], cam, found + out, up)).sum() >= 2
+                       for cam in Q)
+
         def complete(a: int) -> bool:
             if not completable(a):
                 return False
@@ -1045,7 +1058,8 @@ class Detector:
                 side_range=(0.8 * cfg.min_cover_side, cfg.max_cover_side),
                 fits={"left": fits_of("left", int(i[a])),
                       "right": [fits_of("right", int(j[a]))[(s + shift) % 4] for s in range(4)]},
-                print_height=None if texture is None else by_print)
+                print_height=None if texture is None else by_print,
+                ends_refused=between_books)
             if P is None or not flat(geometry.project(rig.Q_L, P)[None],
                                      geometry.project(rig.Q_R, P)[None])[0]:
                 return False
@@ -1056,6 +1070,8 @@ class Detector:
                 return False  # an unseen side placed on a band of the print
             if texture is not None and self._print_on_desk(rig, geometry.project(rig.Q_L, P),
                                                            desk_plane, texture):
+                return False
+            if ({("left", int(i[a])), ("right", int(j[a]))} & let_in) and between_books(P):
                 return False
             left[a], right[a] = geometry.project(rig.Q_L, P), geometry.project(rig.Q_R, P)
             completed[a] = True
@@ -1198,18 +1214,6 @@ class Detector:
         taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
         up = desk_plane / np.linalg.norm(desk_plane[:3])
 
-        def outlines(cam: str, books: list[tuple[Pair, BookDetection]],
-                     ) -> list[NDArray[np.float64]]:
-            # each book's outline in the image: the hull of its cover and its foot (the
-            # cover dropped onto the desk), page block included
-            out = []
-            for p, b in books:
-                foot = b.corners_world - np.outer(geometry.plane_distance(up, b.corners_world),
-                                                  up[:3])
-                both = np.vstack([getattr(p, cam), geometry.project(Q[cam], foot)])
-                out.append(cv2.convexHull(both.astype(np.float32)).reshape(-1, 2))
-            return out
-
         def meet(quads: NDArray[np.float64], cam: str) -> NDArray[np.bool_]:
             # (N, T): whether each quad's box meets each book's quad's box in the image
             if not taken[cam]:
@@ -1231,7 +1235,7 @@ class Detector:
         out: list[tuple[Pair, BookDetection]] = []
         for src, dst in (("left", "right"), ("right", "left")):
             pool = Quads.concat([segs[src].pool, segs[src].open_pool])
-            around = outlines(src, found + out)
+            around = _outlines(Q[src], src, found + out, up)
             tried: list[NDArray[np.float64]] = []
             near = meet(pool.corners, src)  # (a book found below is looked at in full)
             for k in np.argsort(-pool.n_f, kind="stable").tolist():
@@ -1281,7 +1285,7 @@ class Detector:
                     continue
                 taken["left"].append(pair.left)
                 taken["right"].append(pair.right)
-                around += outlines(src, [(pair, book)])
+                around += _outlines(Q[src], src, [(pair, book)], up)
                 out.append((pair, book))
         return out
 
@@ -2238,6 +2242,19 @@ def _over_any(quads: NDArray[np.float64], others: Sequence[NDArray[np.float64]],
         smaller = min(q_area[k], t_area[t])
         if (float(inter) / smaller if smaller > 0 else 1.0) > share:
             out[k] = True
+    return out
+
+
+def _outlines(Q: NDArray[np.float64], cam: str, books: list[tuple[Pair, BookDetection]],
+              up: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+    """Each book's outline in camera ``cam`` (projection ``Q``): the convex hull (M, 2) of
+    its cover and its foot (the cover dropped onto the desk, ``up`` its unit normal and
+    offset), page block included."""
+    out = []
+    for p, b in books:
+        foot = b.corners_world - np.outer(geometry.plane_distance(up, b.corners_world), up[:3])
+        both = np.vstack([getattr(p, cam), geometry.project(Q, foot)])
+        out.append(cv2.convexHull(both.astype(np.float32)).reshape(-1, 2))
     return out
 
 
