@@ -648,17 +648,25 @@ def _side_on_its_foot(P, Q, s):
     return out
 
 
-def test_a_side_on_its_foot_in_both_images_is_lifted_to_the_cover():
-    """A book 3 cm thick whose short side, its page block showing, both images took at the
-    block's foot: its corners there triangulate near the desk (a tilted cover); lifted,
-    the cover is back within millimetres."""
+@pytest.fixture(scope="module")
+def book_3cm():
+    """A plain book 3 cm thick alone on the desk: its corners (4, 3), the projections,
+    gradients, desk plane, its unit normal, a short side whose page block shows, the rig."""
     book = Book(center=(0.60, 0.33, 0.03), yaw_deg=20.0, size=(0.22, 0.15, 0.03),
                 cover=CoverSpec(kind="plain", albedo=0.5, seed=1))
-    r, grads, Q, _ = _rendered([book])
+    r, grads, Q, rig = _rendered([book])
     P = np.array(r.truth["books"][0]["corners"])
     desk = np.asarray(r.truth["desk_plane"])
     up = desk[:3] / np.linalg.norm(desk[:3])
     s = next(k for k in (0, 2) if extent._block_shows(P, k, Q, -0.03 * up))  # a short side
+    return P, Q, grads, desk, up, s, rig
+
+
+def test_a_side_on_its_foot_in_both_images_is_lifted_to_the_cover(book_3cm):
+    """A book 3 cm thick whose short side, its page block showing, both images took at the
+    block's foot: its corners there triangulate near the desk (a tilted cover); lifted,
+    the cover is back within millimetres."""
+    P, Q, grads, desk, up, s, _ = book_3cm
     corners = {cam: _side_on_its_foot(P, Q[cam], s) for cam in Q}
     before = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
     h = geometry.plane_distance(desk, before)
@@ -677,14 +685,8 @@ def test_a_side_on_its_foot_in_both_images_is_lifted_to_the_cover():
     assert extent.lift_foot(corners, Q, grads, before, desk) is None
 
 
-def test_the_detector_lifts_a_pair_only_where_no_book_is_in_either_image():
-    book = Book(center=(0.60, 0.33, 0.03), yaw_deg=20.0, size=(0.22, 0.15, 0.03),
-                cover=CoverSpec(kind="plain", albedo=0.5, seed=1))
-    r, grads, Q, rig = _rendered([book])
-    P = np.array(r.truth["books"][0]["corners"])
-    desk = np.asarray(r.truth["desk_plane"])
-    up = desk[:3] / np.linalg.norm(desk[:3])
-    s = next(k for k in (0, 2) if extent._block_shows(P, k, Q, -0.03 * up))
+def test_the_detector_lifts_a_pair_only_where_no_book_is_in_either_image(book_3cm):
+    P, Q, grads, desk, _, s, rig = book_3cm
     tilted = Pair(_side_on_its_foot(P, Q["left"], s), _side_on_its_foot(P, Q["right"], s),
                   1.0, 0.0)
     det = Detector(rig)
