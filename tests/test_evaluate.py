@@ -244,6 +244,12 @@ def test_a_method_that_raises_loses_its_books_not_the_scene(dataset, monkeypatch
     assert broken["books"] == len(rec["books"]) > 0
     assert ev.summarize_method([rec], "contour")["failed"] == 0
     assert "failed on 1 image (books counted as missed)" in ev.method_table("open", broken, None)
+    # the breakdowns count the failed images per group, only where some method failed
+    table = ev.breakdown_table(ev.breakdown([rec], ["contour", "open"])["lux"], "light level")
+    head, contour, broken_row = table.splitlines()
+    assert head.split()[-1] == "failed"
+    assert contour.split()[-1] == "0" and broken_row.split()[-1] == "1"
+    assert "failed" not in ev.breakdown_table(ev.breakdown([rec], ["contour"])["lux"], "lux")
     shapes = ev.score_scene(dataset / "scenes" / "0000",
                             {"contour": detectors["contour"], "open": Shapes(rig)})
     assert shapes["methods"]["open"]["failed"].startswith("ValueError: operands could not")

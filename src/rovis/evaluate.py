@@ -787,11 +787,14 @@ def summary_table(summary: Mapping[str, Mapping[str, Any]]) -> str:
 
 def breakdown_table(groups: Mapping[str, Mapping[str, Mapping[str, Any]]], title: str) -> str:
     """Recall, false positives, mean position/yaw error and the largest position error per
-    group and method (the grasp tolerance is on the largest)."""
+    group and method (the grasp tolerance is on the largest); where a method raised on
+    some image (:func:`score_scene`), a last column counts those images per group."""
     methods = list(next(iter(groups.values())).keys()) if groups else []
+    failed = any(s.get("failed") for per_method in groups.values() for s in per_method.values())
     rows = [f"{title:<14}{'method':<14}{'images':>7}{'recall':>8}{'FP/img':>8}"
             f"{'|X_e| m':>9}{'|Y_e| m':>9}{'|Z_e| m':>9}{'|Ψ_e| °':>9}"
-            f"{'max|X_e|':>10}{'max|Y_e|':>10}{'max|Z_e|':>10}"]
+            f"{'max|X_e|':>10}{'max|Y_e|':>10}{'max|Z_e|':>10}"
+            + (f"{'failed':>8}" if failed else "")]
     for label, per_method in groups.items():
         for k, m in enumerate(methods):
             s = per_method[m]
@@ -800,7 +803,8 @@ def breakdown_table(groups: Mapping[str, Mapping[str, Mapping[str, Any]]], title
                         f"{_pct(s['recall']):>8}{_num(s['fp_per_image'], 8, 2)}"
                         + "".join(_num(e[c]["mean"], 9, 4) for c in ("x", "y", "z"))
                         + _num(e["psi_deg"]["mean"], 9, 2)
-                        + "".join(_num(e[c]["max"], 10, 4) for c in ("x", "y", "z")))
+                        + "".join(_num(e[c]["max"], 10, 4) for c in ("x", "y", "z"))
+                        + (f"{s.get('failed', 0):>8}" if failed else ""))
     return "\n".join(rows)
 
 
