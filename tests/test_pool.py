@@ -14,7 +14,7 @@ from rovis.pipeline import DetectConfig, Detector, Pair, _is_union, _skew_deg, w
 from rovis.segment import gradients
 from rovis.segment.boundary import Segmentation
 from rovis.segment.quads import Quads, order_corners
-from rovis.stereo import flat_rectangle, pool_pairs
+from rovis.stereo import StereoConfig, _seen_side_heights, flat_rectangle, pool_pairs
 from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
@@ -108,6 +108,44 @@ def test_pool_pairs_drops_a_tilted_pair_and_a_pattern_on_the_desk(book):
                     [geometry.project(rig.Q_R, q) for q in quads], rig.Q_L, rig.Q_R,
                     desk_plane=DESK)
     assert pp.left.tolist() == [0] and pp.right.tolist() == [0]
+
+
+def _ends_slid(q, px):
+    """Quad ``q`` (4, 2) with corners 1 and 2 slid ``px`` pixels outward along sides 0 and 2:
+    an opposite-sided candidate's ends, guessed where each image's edges stopped."""
+    q = q.copy()
+    for c, other in ((1, 0), (2, 3)):
+        q[c] += px * (q[c] - q[other]) / np.linalg.norm(q[c] - q[other])
+    return q
+
+
+def test_pool_pairs_keeps_an_opposite_sided_pair_by_its_seen_sides(book):
+    _, _, rig = book
+    P = _rectangle(center=(0.42, 0.30), size=(0.22, 0.15), z=0.03, yaw_deg=10.0)
+    # each image's ends 8 px off along the seen sides, the other way: 13 and 12 cm of
+    # height at those corners (truth 3 cm), no flat rectangle
+    left = _ends_slid(order_corners(geometry.project(rig.Q_L, P)), 8.0)
+    right = _ends_slid(order_corners(geometry.project(rig.Q_R, P)), -8.0)
+    X = geometry.triangulate_dlt(rig.Q_L, rig.Q_R, left, right)
+    assert X[1:3, 2].min() > 0.10
+    seen = np.array([[True, False, True, False]])  # sides 0 and 2 seen, 1 and 3 not
+
+    def pairs(desk=DESK, cfg=StereoConfig(), seen_left=seen, seen_right=seen):
+        return len(pool_pairs(left[None], right[None], rig.Q_L, rig.Q_R, desk_plane=desk,
+                              seen_left=seen_left, seen_right=seen_right, cfg=cfg))
+
+    assert pairs(seen_left=None, seen_right=None) == 0  # by its corners: no cover
+    assert pairs() == 1  # its seen sides lie at 3 cm
+    # the seen sides measured: 3 cm above the desk (the unseen ones not asked)
+    h = _seen_side_heights(left[None], right[None], seen, rig.Q_L, rig.Q_R, DESK,
+                           StereoConfig())[0]
+    np.testing.assert_allclose(h[[0, 2]], 0.03, atol=0.001)
+    assert np.isnan(h[[1, 3]]).all()
+    # ...but not where those sides lie 5 mm above the desk (under StereoConfig.min_height),
+    assert pairs(desk=np.array([0.0, 0.0, 1.0, -0.025])) == 0
+    # nor with the rule off, nor where one image saw every side (no opposite-sided pair)
+    assert pairs(cfg=StereoConfig(pool_opposite=False)) == 0
+    assert pairs(seen_right=np.ones((1, 4), bool)) == 0
 
 
 def test_a_book_from_the_pools_where_no_selection_kept_it(book):

@@ -903,7 +903,8 @@ class Detector:
         pp = pool_pairs(pool["left"].corners[index["left"]], pool["right"].corners[index["right"]],
                         rig.Q_L, rig.Q_R, desk_plane=desk_plane,
                         side_range=(0.8 * cfg.min_cover_side, 1.1 * cfg.max_cover_side),
-                        cfg=cfg.stereo)
+                        cfg=cfg.stereo, seen_left=pool["left"].lines[index["left"]] >= 0,
+                        seen_right=pool["right"].lines[index["right"]] >= 0)
         if extra and len(pp):  # the pairs of the other pools were tried before
             pp = pp.take(np.flatnonzero((index["left"][pp.left] >= early["left"])
                                         | (index["right"][pp.right] >= early["right"])))

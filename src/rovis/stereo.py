@@ -78,6 +78,11 @@ class StereoConfig:
     pool: bool = True
     pool_max_pairs: int = 300  # refined per frame, the smallest epipolar error first
     small_max_pairs: int = 20  # ...in the pass of the small candidates (Segmentation.small_pool)
+    # A pair whose two opposite sides both images saw and whose other two neither did (two
+    # plain books end to end, their ends unseen) has its corners where each image's edges
+    # happened to end, centimetres off in depth: pool_pairs asks of it only that its seen
+    # sides lie at a cover's height and that it is roughly a rectangle (pool_pairs)
+    pool_opposite: bool = True
     # A pair that refines to no flat cover and has every side seen in one image or the
     # other is refit as one rectangle parallel to the desk (as DetectConfig.flat_refit_px);
     # taken last in its pass, after the completions. At most this many per pass, the most
@@ -218,7 +223,9 @@ class PoolPairs:
 def pool_pairs(pool_left: ArrayLike, pool_right: ArrayLike, Q_L: ArrayLike, Q_R: ArrayLike, *,
                desk_plane: ArrayLike | None = None, side_range: tuple[float, float] = (0.05, 0.45),
                max_skew_deg: float = 25.0, max_tilt_deg: float = 25.0,
-               height_slack: float = 0.04, cfg: StereoConfig = StereoConfig()) -> PoolPairs:
+               height_slack: float = 0.04, cfg: StereoConfig = StereoConfig(),
+               seen_left: ArrayLike | None = None, seen_right: ArrayLike | None = None,
+               ) -> PoolPairs:
     """Every left × right pair of candidate quads that could be one book's cover.
 
     Beyond the paper. Each image's segmentation chooses its covers alone, by edge pixels;
@@ -239,6 +246,17 @@ def pool_pairs(pool_left: ArrayLike, pool_right: ArrayLike, Q_L: ArrayLike, Q_R:
     desk_plane : array_like, shape (4,), optional
     side_range, max_skew_deg, max_tilt_deg, height_slack
         :func:`flat_rectangle`'s gates.
+    seen_left, seen_right : array_like, shape (K, 4) and (M, 4), bool, optional
+        Which sides of each candidate lie on a Hough line (side s from corner s to s + 1;
+        ``Quads.lines >= 0``). With both and ``cfg.pool_opposite``, a pair whose two
+        opposite sides both images saw and whose other two neither did (as
+        :func:`rovis.segment.quads.opposite_sided_quads` gives) is kept if it is roughly a
+        rectangle (sides within half the lower and 1.5 times the upper ``side_range``,
+        angles within 45° of 90°) and each seen side lies at a cover's height
+        (:func:`_seen_side_heights`) instead of by its corners' flatness: its corners are
+        where each image's edges happened to end, and along a side a few pixels are
+        centimetres of depth. The caller places its unseen sides in 3D
+        (:func:`rovis.extent.complete_open`).
 
     Returns
     -------
@@ -270,11 +288,93 @@ def pool_pairs(pool_left: ArrayLike, pool_right: ArrayLike, Q_L: ArrayLike, Q_R:
     i, j, s_best, e_best, corners_r = i[ok], j[ok], s_best[ok], e_best[ok], cand[ok, s_best[ok]]
     P = geometry.triangulate_dlt(Q_L, Q_R, qL[i].reshape(-1, 2),
                                  corners_r.reshape(-1, 2)).reshape(-1, 4, 3)
+    heights = (cfg.min_height - height_slack, cfg.max_cover_height + height_slack)
     ok = flat_rectangle(P, desk_plane, side_range=side_range, max_skew_deg=max_skew_deg,
-                        max_tilt_deg=max_tilt_deg,
-                        height_range=(cfg.min_height - height_slack,
-                                      cfg.max_cover_height + height_slack))
+                        max_tilt_deg=max_tilt_deg, height_range=heights)
+    if (cfg.pool_opposite and seen_left is not None and seen_right is not None
+            and desk_plane is not None):
+        seen_l = np.asarray(seen_left, bool).reshape(-1, 4)[i]
+        seen_r = np.take_along_axis(np.asarray(seen_right, bool).reshape(-1, 4)[j],
+                                    shifts[s_best], axis=1)  # in the left's corner order
+        both, neither = seen_l & seen_r, ~seen_l & ~seen_r
+        # sides 0 and 2 seen in both images and 1 and 3 in neither, or the other way round
+        opposite = np.flatnonzero(~ok & (
+            (both[:, 0] & both[:, 2] & neither[:, 1] & neither[:, 3])
+            | (both[:, 1] & both[:, 3] & neither[:, 0] & neither[:, 2])))
+        if len(opposite):
+            h = _seen_side_heights(qL[i[opposite]], corners_r[opposite],
+                                   both[opposite], Q_L, Q_R, desk_plane, cfg)
+            known = np.isfinite(h).any(axis=1)
+            at_cover = known & np.all(np.isnan(h) | ((h >= cfg.min_height)
+                                                     & (h <= heights[1])), axis=1)
+            # the shape: both images' quads laid at the seen sides' height, averaged
+            level = np.zeros(len(opposite))
+            if at_cover.any():  # (there every height is finite or NaN, one at least finite)
+                level[at_cover] = np.nanmedian(h[at_cover], axis=1)
+            laid = 0.5 * (_laid(Q_L, qL[i[opposite]], desk_plane, level)
+                          + _laid(Q_R, corners_r[opposite], desk_plane, level))
+            ok[opposite] = at_cover & flat_rectangle(
+                laid, side_range=(0.5 * side_range[0], 1.5 * side_range[1]), max_skew_deg=45.0)
     return PoolPairs(i[ok], j[ok], corners_r[ok], s_best[ok], e_best[ok])
+
+
+def _laid(Q: NDArray[np.float64], px: NDArray[np.float64], desk_plane: ArrayLike,
+          height: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Quads' pixels ``px`` (N, 4, 2) back-projected onto the desk's parallels at
+    ``height`` (N,) metres above it: world corners (N, 4, 3)."""
+    plane = np.asarray(desk_plane, dtype=np.float64)
+    n = plane[:3] / np.linalg.norm(plane[:3])
+    d = plane[3] / np.linalg.norm(plane[:3])
+    C, rays = _rays(Q, px.reshape(-1, 2))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (np.repeat(height, 4) - (n @ C + d)) / (rays @ n)
+    return (C + s[:, None] * rays).reshape(-1, 4, 3)
+
+
+def _seen_side_heights(left: NDArray[np.float64], right: NDArray[np.float64],
+                       seen: NDArray[np.bool_], Q_L: NDArray[np.float64],
+                       Q_R: NDArray[np.float64], desk_plane: ArrayLike, cfg: StereoConfig,
+                       min_angle_deg: float = 10.0) -> NDArray[np.float64]:
+    """Height above the desk (metres) of each seen side of paired quads, whatever their
+    corners: the left side's midpoint matched where the right side crosses that point's
+    epipolar segment (:func:`_segments`), triangulated.
+
+    Parameters
+    ----------
+    left, right : ndarray, shape (N, 4, 2)
+        The pairs' corners in each ideal image, corresponding.
+    seen : ndarray, shape (N, 4), bool
+        The sides to measure (side s from corner s to s + 1).
+
+    Returns
+    -------
+    ndarray, shape (N, 4)
+        NaN for a side not measured or within ``min_angle_deg`` of its epipolar segment
+        (along the epipolar lines a side has no disparity); +inf where the right side
+        crosses the segment's line outside the segment (below the desk or above
+        ``cfg.max_height``).
+    """
+    out = np.full(seen.shape, np.nan)
+    n, s = np.nonzero(seen)
+    if len(n) == 0:
+        return out
+    a, b = left[n, s], left[n, (s + 1) % 4]
+    mid = 0.5 * (a + b)
+    near, far = _segments(mid, Q_L, Q_R, desk_plane, cfg)
+    c, d = right[n, s], right[n, (s + 1) % 4]
+    # near + t (far - near) on the right side's line: (x - c) × (d - c) = 0
+    seg, side = far - near, d - c
+    cross = seg[:, 0] * side[:, 1] - seg[:, 1] * side[:, 0]
+    sine = np.abs(cross) / np.maximum(np.linalg.norm(seg, axis=1)
+                                      * np.linalg.norm(side, axis=1), 1e-12)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = ((c[:, 0] - near[:, 0]) * side[:, 1] - (c[:, 1] - near[:, 1]) * side[:, 0]) / cross
+    on = np.where(np.isfinite(t)[:, None], near + t[:, None] * seg, near)  # (parallel: NaN)
+    X = geometry.triangulate_dlt(Q_L, Q_R, mid, on)
+    h = geometry.plane_distance(np.asarray(desk_plane, dtype=np.float64), X)
+    h = np.where((t >= 0.0) & (t <= 1.0), h, np.inf)
+    out[n, s] = np.where(sine >= np.sin(np.radians(min_angle_deg)), h, np.nan)
+    return out
 
 
 def flat_rectangle(P: ArrayLike, desk_plane: ArrayLike | None = None, *,
