@@ -493,23 +493,24 @@ def _edge(grad: Gradients, start: NDArray[np.float64], pts: NDArray[np.float64],
     Either points ``pts`` (N, 2) on one line through ``start`` (2,), or, with ``along``
     (D, 2), points (D, S, 2) on D lines of those directions (``start`` then unused).
     """
-    direction = pts - start if along is None else np.broadcast_to(
-        np.asarray(along)[:, None, :], pts.shape)
+    if along is None:
+        direction = pts - start
+    else:  # one direction per line, normalised once, not once per point (the same values)
+        direction = np.asarray(along, dtype=np.float64)[:, None, :]
     direction = direction / np.maximum(np.linalg.norm(direction, axis=-1, keepdims=True), 1e-9)
-    n = np.stack([-direction[..., 1], direction[..., 0]], axis=-1)
+    # the normal's components, (N,) or (D, S) (with along: (D, 1), broadcast over S)
+    nx, ny = -direction[..., 1], direction[..., 0]
     cos_max = np.cos(np.radians(max_angle_deg))
-    best = np.zeros(pts.shape[:-1])
-    at_points = best
-    # the three offsets' points sampled at once (one call's overhead, not three)
-    offsets = np.array([-1.0, 0.0, 1.0]).reshape((3,) + (1,) * pts.ndim)
-    q = pts + offsets * n
-    gxs, gys = grad.sample(q[..., 0], q[..., 1])
-    for off, gx, gy in zip((-1.0, 0.0, 1.0), gxs, gys):
-        across = np.abs(gx * n[..., 0] + gy * n[..., 1])
-        best = np.maximum(best, np.where(across >= cos_max * np.hypot(gx, gy), across, 0.0))
-        if off == 0.0:
-            at_points = across
-    return (best, at_points) if centre else best
+    # the three offsets' points sampled at once (one call's overhead, not three), and the
+    # three offsets' tests in one pass over (3, ...) arrays: each value is computed as it
+    # was offset by offset, elementwise
+    offsets = np.array([-1.0, 0.0, 1.0]).reshape((3,) + (1,) * (pts.ndim - 1))
+    gxs, gys = grad.sample(pts[..., 0] + offsets * nx, pts[..., 1] + offsets * ny)
+    across = np.abs(gxs * nx + gys * ny)
+    kept = np.where(across >= cos_max * np.hypot(gxs, gys), across, 0.0)
+    # best of the three and 0, as np.maximum folded it (a max is exact in any order)
+    best = np.maximum(np.maximum(np.maximum(0.0, kept[0]), kept[1]), kept[2])
+    return (best, across[1]) if centre else best
 
 
 def _on_desk(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
