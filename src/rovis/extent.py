@@ -332,10 +332,13 @@ def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]]
         ok &= (mid - bottom) @ n_out > 2.0
         # the neighbouring sides' continuations: edge hits at each step, then the share of
         # hits from the old corner out to each offset
-        for k, old in ((a, P[a]), (b, P[b])) if continuation is None else ():  # (strict)
-            ext = geometry.project(Q[cam], moved[:, k])  # (D, 2)
-            start = geometry.project(Q[cam], old[None])[0]
-            hit = _hits(grads[cam], start, ext, thr, cfg.max_angle_deg)
+        if continuation is not None:  # (strict; else asked below, in either image)
+            continue
+        # both neighbours' points tested in one _edge call ((2, D, 2) points, each line's
+        # start (2, 1, 2)): it is elementwise, so the same values as a call per neighbour
+        ext = np.stack([geometry.project(Q[cam], moved[:, k]) for k in (a, b)])
+        start = np.stack([geometry.project(Q[cam], P[k][None]) for k in (a, b)])
+        for hit in _hits(grads[cam], start, ext, thr, cfg.max_angle_deg):
             n = np.arange(1, len(d) + 1)  # steps out to each offset
             n_hit = np.concatenate([[0], np.cumsum(hit)])
             ok &= n_hit[1:] / n >= cfg.min_support
@@ -343,14 +346,14 @@ def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]]
             w = min(len(d), max(1, int(round(cfg.reach / cfg.step))))
             ok &= (n_hit[1:] - n_hit[np.maximum(n - w, 0)]) / np.minimum(n, w) >= 0.5
     if continuation is not None:  # each neighbour's, in either image, along this share
-        for k, old in ((a, P[a]), (b, P[b])):
-            share = np.zeros(len(d))
-            for cam in ("left", "right"):
-                ext = geometry.project(Q[cam], moved[:, k])
-                start = geometry.project(Q[cam], old[None])[0]
-                hit = _hits(grads[cam], start, ext, min_strength[cam], cfg.max_angle_deg)
-                share = np.maximum(share, np.cumsum(hit) / np.arange(1, len(d) + 1))
-            ok &= share >= continuation
+        share = np.zeros((2, len(d)))  # neighbours a and b, in one _edge call per image
+        for cam in ("left", "right"):
+            ext = np.stack([geometry.project(Q[cam], moved[:, k]) for k in (a, b)])
+            start = np.stack([geometry.project(Q[cam], P[k][None]) for k in (a, b)])
+            hit = _hits(grads[cam], start, ext, min_strength[cam], cfg.max_angle_deg)
+            share = np.maximum(share, np.cumsum(hit, axis=1) / np.arange(1, len(d) + 1))
+        ok &= share[0] >= continuation
+        ok &= share[1] >= continuation
     ok &= d >= cfg.min_grow
     if not ok.any():  # (the common case: a cover's own side, its neighbours end there)
         return 0.0
