@@ -989,6 +989,12 @@ class Detector:
                 return
             l1, r1 = refine_pairs(index, (True, True))
             good = flat(l1, r1)
+            # whether the inward search moved a side of each pair's quad, per image: where
+            # it did not, the quad without it is the same, and a try of the pair with that
+            # quad is one made before (it failed: not made again, not asked of flat)
+            moved = {cam: np.array([not np.array_equal(cache[cam, k][0], cache[cam, k][1])
+                                    for k in ks.tolist()], bool)
+                     for cam, ks in (("left", i[index]), ("right", j[index]))}
             # The refinement looks for a cover edge inside a side facing the camera (a page
             # block below it); a printed line there can pull one image's side inward and
             # tilt the cover. A pair that is no flat cover so is tried without that step,
@@ -997,6 +1003,11 @@ class Detector:
                 retry = np.flatnonzero(~good)
                 if len(retry) == 0:
                     break
+                for cam, search in zip(("left", "right"), inward):
+                    if not search:
+                        retry = retry[moved[cam][retry]]
+                if len(retry) == 0:
+                    continue
                 l2, r2 = refine_pairs(index[retry], inward)
                 better = flat(l2, r2)
                 l1[retry[better]], r1[retry[better]] = l2[better], r2[better]
