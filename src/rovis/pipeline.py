@@ -2279,9 +2279,18 @@ def _sides_on(quad: NDArray[np.float64], regions: Sequence[NDArray[np.float64]],
     out = np.zeros(4, bool)
     t = np.linspace(0.1, 0.9, 17)[None, :, None]
     p = (quad[:, None] + t * (np.roll(quad, -1, axis=0) - quad)[:, None]).reshape(-1, 2)
+    # the points' box, tol_px and a pixel more (a margin far above any rounding)
+    low, high = p.min(axis=0) - (tol_px + 1.0), p.max(axis=0) + (tol_px + 1.0)
     for region in regions:
         a = np.asarray(region, dtype=np.float64)
         ab = np.roll(a, -1, axis=0) - a  # (M, 2) the outline's sides
+        # A region with an area whose box misses that box holds none of the points and
+        # lies more than tol_px from each: it changes nothing, and is not looked at (most
+        # books are elsewhere). (A region with no area, a segment or a point, is: the
+        # signs of the cross products below are all 0 along its line.)
+        if ((np.any(a.min(axis=0) > high) or np.any(a.max(axis=0) < low))
+                and abs(float(np.sum(a[:, 0] * ab[:, 1] - a[:, 1] * ab[:, 0]))) > 1.0):
+            continue
         ap = p[:, None] - a[None]  # (N, M, 2)
         cross = ab[:, 0] * ap[..., 1] - ab[:, 1] * ap[..., 0]
         inside = np.all(cross >= 0, axis=1) | np.all(cross <= 0, axis=1)
