@@ -332,10 +332,13 @@ def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]]
         ok &= (mid - bottom) @ n_out > 2.0
         # the neighbouring sides' continuations: edge hits at each step, then the share of
         # hits from the old corner out to each offset
-        for k, old in ((a, P[a]), (b, P[b])) if continuation is None else ():  # (strict)
-            ext = geometry.project(Q[cam], moved[:, k])  # (D, 2)
-            start = geometry.project(Q[cam], old[None])[0]
-            hit = _hits(grads[cam], start, ext, thr, cfg.max_angle_deg)
+        if continuation is not None:  # (strict; else asked below, in either image)
+            continue
+        # both neighbours' points tested in one _edge call ((2, D, 2) points, each line's
+        # start (2, 1, 2)): it is elementwise, so the same values as a call per neighbour
+        ext = np.stack([geometry.project(Q[cam], moved[:, k]) for k in (a, b)])
+        start = np.stack([geometry.project(Q[cam], P[k][None]) for k in (a, b)])
+        for hit in _hits(grads[cam], start, ext, thr, cfg.max_angle_deg):
             n = np.arange(1, len(d) + 1)  # steps out to each offset
             n_hit = np.concatenate([[0], np.cumsum(hit)])
             ok &= n_hit[1:] / n >= cfg.min_support
@@ -343,14 +346,14 @@ def _grow_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]]
             w = min(len(d), max(1, int(round(cfg.reach / cfg.step))))
             ok &= (n_hit[1:] - n_hit[np.maximum(n - w, 0)]) / np.minimum(n, w) >= 0.5
     if continuation is not None:  # each neighbour's, in either image, along this share
-        for k, old in ((a, P[a]), (b, P[b])):
-            share = np.zeros(len(d))
-            for cam in ("left", "right"):
-                ext = geometry.project(Q[cam], moved[:, k])
-                start = geometry.project(Q[cam], old[None])[0]
-                hit = _hits(grads[cam], start, ext, min_strength[cam], cfg.max_angle_deg)
-                share = np.maximum(share, np.cumsum(hit) / np.arange(1, len(d) + 1))
-            ok &= share >= continuation
+        share = np.zeros((2, len(d)))  # neighbours a and b, in one _edge call per image
+        for cam in ("left", "right"):
+            ext = np.stack([geometry.project(Q[cam], moved[:, k]) for k in (a, b)])
+            start = np.stack([geometry.project(Q[cam], P[k][None]) for k in (a, b)])
+            hit = _hits(grads[cam], start, ext, min_strength[cam], cfg.max_angle_deg)
+            share = np.maximum(share, np.cumsum(hit, axis=1) / np.arange(1, len(d) + 1))
+        ok &= share[0] >= continuation
+        ok &= share[1] >= continuation
     ok &= d >= cfg.min_grow
     if not ok.any():  # (the common case: a cover's own side, its neighbours end there)
         return 0.0
@@ -493,23 +496,24 @@ def _edge(grad: Gradients, start: NDArray[np.float64], pts: NDArray[np.float64],
     Either points ``pts`` (N, 2) on one line through ``start`` (2,), or, with ``along``
     (D, 2), points (D, S, 2) on D lines of those directions (``start`` then unused).
     """
-    direction = pts - start if along is None else np.broadcast_to(
-        np.asarray(along)[:, None, :], pts.shape)
+    if along is None:
+        direction = pts - start
+    else:  # one direction per line, normalised once, not once per point (the same values)
+        direction = np.asarray(along, dtype=np.float64)[:, None, :]
     direction = direction / np.maximum(np.linalg.norm(direction, axis=-1, keepdims=True), 1e-9)
-    n = np.stack([-direction[..., 1], direction[..., 0]], axis=-1)
+    # the normal's components, (N,) or (D, S) (with along: (D, 1), broadcast over S)
+    nx, ny = -direction[..., 1], direction[..., 0]
     cos_max = np.cos(np.radians(max_angle_deg))
-    best = np.zeros(pts.shape[:-1])
-    at_points = best
-    # the three offsets' points sampled at once (one call's overhead, not three)
-    offsets = np.array([-1.0, 0.0, 1.0]).reshape((3,) + (1,) * pts.ndim)
-    q = pts + offsets * n
-    gxs, gys = grad.sample(q[..., 0], q[..., 1])
-    for off, gx, gy in zip((-1.0, 0.0, 1.0), gxs, gys):
-        across = np.abs(gx * n[..., 0] + gy * n[..., 1])
-        best = np.maximum(best, np.where(across >= cos_max * np.hypot(gx, gy), across, 0.0))
-        if off == 0.0:
-            at_points = across
-    return (best, at_points) if centre else best
+    # the three offsets' points sampled at once (one call's overhead, not three), and the
+    # three offsets' tests in one pass over (3, ...) arrays: each value is computed as it
+    # was offset by offset, elementwise
+    offsets = np.array([-1.0, 0.0, 1.0]).reshape((3,) + (1,) * (pts.ndim - 1))
+    gxs, gys = grad.sample(pts[..., 0] + offsets * nx, pts[..., 1] + offsets * ny)
+    across = np.abs(gxs * nx + gys * ny)
+    kept = np.where(across >= cos_max * np.hypot(gxs, gys), across, 0.0)
+    # best of the three and 0, as np.maximum folded it (a max is exact in any order)
+    best = np.maximum(np.maximum(np.maximum(0.0, kept[0]), kept[1]), kept[2])
+    return (best, across[1]) if centre else best
 
 
 def _on_desk(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],

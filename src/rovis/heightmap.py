@@ -523,16 +523,31 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
             at = at_valid[(valid_height >= bounds[0]) & (valid_height <= bounds[1])]
         if len(at) < cfg.min_pixels:
             continue
-        slab = np.zeros(height.shape, np.uint8)
-        slab.ravel()[at] = 1
+        # The morphology and the labels in the slab's box only, 3 px beyond it (the
+        # closing reaches 2 px: that ring stays 0, so every pixel of the box comes out as
+        # in the whole map, the erosion's too), from an even row and column: the labelling
+        # scans 2 x 2 blocks, and each patch's label is its first block's rank in that
+        # scan, the same in the box as in the map where the blocks align (nothing but 0
+        # lies outside the box).
+        box_y0, box_y1 = max(int(at[0]) // width - 3, 0), int(at[-1]) // width + 4
+        ys_at = at // width
+        xs_at = at - ys_at * width
+        box_x0, box_x1 = max(int(xs_at.min()) - 3, 0), int(xs_at.max()) + 4
+        box_y0, box_x0 = box_y0 - box_y0 % 2, box_x0 - box_x0 % 2
+        slab = np.zeros(height[box_y0:box_y1, box_x0:box_x1].shape, np.uint8)
+        in_box = (ys_at - box_y0) * slab.shape[1] + (xs_at - box_x0)  # at, in the box
+        slab.ravel()[in_box] = 1
         joined = cv2.morphologyEx(slab, cv2.MORPH_CLOSE, kernel)
         if erode_px > 0:
             joined = cv2.erode(joined, np.ones((2 * erode_px + 1,) * 2, np.uint8))
-            at = at[joined.ravel()[at] > 0]
+            kept = joined.ravel()[in_box] > 0
+            at, in_box = at[kept], in_box[kept]
         # labels only (the stats cost three times the labelling): the slab is inside the
-        # joined patches, so a patch with min_pixels slab pixels has that area too
-        count, labels = cv2.connectedComponents(joined, connectivity=8)
-        label = labels.ravel()[at]
+        # joined patches, so a patch with min_pixels slab pixels has that area too. 16-bit
+        # labels (less to write) where they cannot run out: no more patches than pixels.
+        ltype = cv2.CV_16U if cv2.countNonZero(joined) < 65535 else cv2.CV_32S
+        count, labels = cv2.connectedComponents(joined, connectivity=8, ltype=ltype)
+        label = labels.ravel()[in_box]
         per_patch = np.bincount(label, minlength=count)
         origin = on_desk + h * n
         to_plane = np.linalg.inv(plane_homography(Q_L, origin, e1, e2)) @ shift  # → (u, v)

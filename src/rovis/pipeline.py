@@ -881,6 +881,8 @@ class Detector:
         """
         cfg = self.cfg
         overlap = cfg.stereo.transfer_max_overlap
+        # the projections, made once for the pass (rig.Q_L makes its matrix again each time
+        # it is read: flat reads both for every try of a pair)
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         up = desk_plane / np.linalg.norm(desk_plane[:3])
         # the full candidates and those with one side unseen (Segmentation.open_pool),
@@ -963,7 +965,7 @@ class Detector:
             return cache[cam, k][0 if inward else 1]
 
         def flat(left: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[np.bool_]:
-            P = geometry.triangulate_dlt(rig.Q_L, rig.Q_R, left.reshape(-1, 2),
+            P = geometry.triangulate_dlt(Q["left"], Q["right"], left.reshape(-1, 2),
                                          right.reshape(-1, 2)).reshape(-1, 4, 3)
             return flat_rectangle(P, desk_plane, side_range=(0.8 * cfg.min_cover_side,
                                                              cfg.max_cover_side),
@@ -990,6 +992,12 @@ class Detector:
                 return
             l1, r1 = refine_pairs(index, (True, True))
             good = flat(l1, r1)
+            # whether the inward search moved a side of each pair's quad, per image: where
+            # it did not, the quad without it is the same, and a try of the pair with that
+            # quad is one made before (it failed: not made again, not asked of flat)
+            moved = {cam: np.array([not np.array_equal(cache[cam, k][0], cache[cam, k][1])
+                                    for k in ks.tolist()], bool)
+                     for cam, ks in (("left", i[index]), ("right", j[index]))}
             # The refinement looks for a cover edge inside a side facing the camera (a page
             # block below it); a printed line there can pull one image's side inward and
             # tilt the cover. A pair that is no flat cover so is tried without that step,
@@ -998,6 +1006,11 @@ class Detector:
                 retry = np.flatnonzero(~good)
                 if len(retry) == 0:
                     break
+                for cam, search in zip(("left", "right"), inward):
+                    if not search:
+                        retry = retry[moved[cam][retry]]
+                if len(retry) == 0:
+                    continue
                 l2, r2 = refine_pairs(index[retry], inward)
                 better = flat(l2, r2)
                 l1[retry[better]], r1[retry[better]] = l2[better], r2[better]
@@ -1046,14 +1059,14 @@ class Detector:
             def by_print() -> float | None:
                 # the candidate's guessed sides may be off: the sweep's inset spares them
                 assert texture is not None
-                asked.append(print_height(texture["left"], texture["right"], rig.Q_L, rig.Q_R,
+                asked.append(print_height(texture["left"], texture["right"], Q["left"], Q["right"],
                                           pool["left"].corners[i[a]], desk_plane, cfg.sweep))
                 return asked[-1]
 
             P = complete_open(
                 {"left": pool["left"].corners[i[a]],
                  "right": np.roll(pool["right"].corners[j[a]], -shift, axis=0)},
-                seen(a), {"left": rig.Q_L, "right": rig.Q_R}, grads, strength, desk_plane,
+                seen(a), Q, grads, strength, desk_plane,
                 cfg.complete,
                 height_range=(cfg.stereo.min_height, cfg.stereo.max_cover_height),
                 side_range=(0.8 * cfg.min_cover_side, cfg.max_cover_side),
@@ -1061,20 +1074,20 @@ class Detector:
                       "right": [fits_of("right", int(j[a]))[(s + shift) % 4] for s in range(4)]},
                 print_height=None if texture is None else by_print,
                 ends_refused=between_books)
-            if P is None or not flat(geometry.project(rig.Q_L, P)[None],
-                                     geometry.project(rig.Q_R, P)[None])[0]:
+            if P is None or not flat(geometry.project(Q["left"], P)[None],
+                                     geometry.project(Q["right"], P)[None])[0]:
                 return False
             if texture is not None and asked and asked[0] is not None and print_goes_on(
-                    texture["left"], texture["right"], rig.Q_L, rig.Q_R,
-                    geometry.project(rig.Q_L, P), desk_plane, asked[0], cfg.sweep,
+                    texture["left"], texture["right"], Q["left"], Q["right"],
+                    geometry.project(Q["left"], P), desk_plane, asked[0], cfg.sweep,
                     sides=np.flatnonzero(~(seen(a)["left"] | seen(a)["right"])).tolist()):
                 return False  # an unseen side placed on a band of the print
-            if texture is not None and self._print_on_desk(rig, geometry.project(rig.Q_L, P),
+            if texture is not None and self._print_on_desk(rig, geometry.project(Q["left"], P),
                                                            desk_plane, texture):
                 return False
             if ({("left", int(i[a])), ("right", int(j[a]))} & let_in) and between_books(P):
                 return False
-            left[a], right[a] = geometry.project(rig.Q_L, P), geometry.project(rig.Q_R, P)
+            left[a], right[a] = geometry.project(Q["left"], P), geometry.project(Q["right"], P)
             completed[a] = True
             return True
 
@@ -1129,7 +1142,7 @@ class Detector:
                 step = min(side_evidence(grads[cam], q, evidence * strength[cam]).min()
                            for cam, q in (("left", left[a]), ("right", right[a])))
                 heights = geometry.plane_distance(
-                    desk_plane, geometry.triangulate_dlt(rig.Q_L, rig.Q_R, left[a], right[a]))
+                    desk_plane, geometry.triangulate_dlt(Q["left"], Q["right"], left[a], right[a]))
                 if (step < cfg.stereo.two_sided_evidence
                         or np.ptp(heights) > cfg.stereo.two_sided_flatness) and not (
                         complete(a) and free(a)):
@@ -2267,9 +2280,18 @@ def _sides_on(quad: NDArray[np.float64], regions: Sequence[NDArray[np.float64]],
     out = np.zeros(4, bool)
     t = np.linspace(0.1, 0.9, 17)[None, :, None]
     p = (quad[:, None] + t * (np.roll(quad, -1, axis=0) - quad)[:, None]).reshape(-1, 2)
+    # the points' box, tol_px and a pixel more (a margin far above any rounding)
+    low, high = p.min(axis=0) - (tol_px + 1.0), p.max(axis=0) + (tol_px + 1.0)
     for region in regions:
         a = np.asarray(region, dtype=np.float64)
         ab = np.roll(a, -1, axis=0) - a  # (M, 2) the outline's sides
+        # A region with an area whose box misses that box holds none of the points and
+        # lies more than tol_px from each: it changes nothing, and is not looked at (most
+        # books are elsewhere). (A region with no area, a segment or a point, is: the
+        # signs of the cross products below are all 0 along its line.)
+        if ((np.any(a.min(axis=0) > high) or np.any(a.max(axis=0) < low))
+                and abs(float(np.sum(a[:, 0] * ab[:, 1] - a[:, 1] * ab[:, 0]))) > 1.0):
+            continue
         ap = p[:, None] - a[None]  # (N, M, 2)
         cross = ab[:, 0] * ap[..., 1] - ab[:, 1] * ap[..., 0]
         inside = np.all(cross >= 0, axis=1) | np.all(cross <= 0, axis=1)
