@@ -377,6 +377,29 @@ def _seen_side_heights(left: NDArray[np.float64], right: NDArray[np.float64],
     return out
 
 
+def side_lengths_and_corners(P: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The sides' lengths of quads of world corners ``P`` (..., 4, 3) and how far each
+    corner's angle is from a right angle.
+
+    Returns
+    -------
+    length : ndarray, shape (..., 4)
+        Side k from corner k to k + 1 (metres).
+    cos : ndarray, shape (..., 4)
+        |cos| of the angle at corner k, between side k - 1 and side k: 0 for a right
+        angle, the sine of its deviation from 90° (:func:`rovis.pipeline._skew_deg`); 1
+        where either side has no length (no rectangle).
+    """
+    P = np.asarray(P, dtype=np.float64)
+    side = np.roll(P, -1, axis=-2) - P
+    length = np.linalg.norm(side, axis=-1)
+    unit = side / np.maximum(length[..., None], 1e-12)
+    cos = np.abs(np.sum(unit * np.roll(unit, 1, axis=-2), axis=-1))
+    short = length < 1e-9
+    cos[short | np.roll(short, 1, axis=-1)] = 1.0
+    return length, cos
+
+
 def flat_rectangle(P: ArrayLike, desk_plane: ArrayLike | None = None, *,
                    side_range: tuple[float, float] = (0.05, 0.45), max_skew_deg: float = 12.0,
                    max_tilt_deg: float = 6.0,
@@ -392,11 +415,7 @@ def flat_rectangle(P: ArrayLike, desk_plane: ArrayLike | None = None, *,
     ndarray, shape (N,), bool
     """
     P = np.asarray(P, dtype=np.float64).reshape(-1, 4, 3)
-    side = np.roll(P, -1, axis=1) - P  # side k from corner k to k + 1
-    length = np.linalg.norm(side, axis=2)
-    unit = side / np.maximum(length[..., None], 1e-12)
-    # |cos| of the angle between neighbouring sides: 0 for a rectangle
-    cos = np.abs(np.sum(unit * np.roll(unit, -1, axis=1), axis=2))
+    length, cos = side_lengths_and_corners(P)
     with np.errstate(invalid="ignore"):
         ok = (np.all(np.isfinite(P), axis=(1, 2))
               & np.all((length >= side_range[0]) & (length <= side_range[1]), axis=1)
