@@ -306,7 +306,8 @@ def support_profile(lines: Lines, edges: NDArray[np.uint8], grad: Gradients | No
 def refine_lines(lines: Lines, edges: NDArray[np.uint8], profile: SupportProfile,
                  grad: Gradients | None = None, *, box: tuple[int, int, int, int] | None = None,
                  passes: int = 2, min_span_px: float = 250.0, max_turn_deg: float = 0.6,
-                 max_scatter_px: float = 0.5) -> tuple[Lines, SupportProfile]:
+                 max_scatter_px: float = 0.5,
+                 near: NDArray[np.uint8] | None = None) -> tuple[Lines, SupportProfile]:
     """Beyond the paper: each long line fitted to the edge pixels it is supported by.
 
     Hough's 1° cells leave a line up to 0.5° off its edge: 1 px off at 115 px from where
@@ -333,6 +334,8 @@ def refine_lines(lines: Lines, edges: NDArray[np.uint8], profile: SupportProfile
         :func:`support_profile` of ``lines`` on ``edges`` (with ``grad`` and ``box``).
     grad, box
         As given to :func:`support_profile`: the moved lines are sampled again so.
+    near : ndarray, shape (H, W), uint8, optional
+        The edges' 3×3 dilation, if done already (as for :func:`support_profile`).
 
     Returns
     -------
@@ -352,7 +355,6 @@ def refine_lines(lines: Lines, edges: NDArray[np.uint8], profile: SupportProfile
     # (and hits along half that at least: a line through texture has scattered hits only)
     todo = np.flatnonzero((total >= 0.5 * min_span_px) & (last - first >= min_span_px))
     copied = False
-    near = None
     for _ in range(passes):
         if len(todo) == 0:
             break
