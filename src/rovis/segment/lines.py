@@ -268,8 +268,11 @@ def support_profile(lines: Lines, edges: NDArray[np.uint8], grad: Gradients | No
     n, d = lines.normals, lines.directions
     t_c = d @ centre  # position of the box centre's projection on each line
     along = t_c[:, None] + t[None, :]  # each sample's position on its line (N, L)
-    x = lines.rho[:, None] * n[:, :1] + along * d[:, :1]
-    y = lines.rho[:, None] * n[:, 1:] + along * d[:, 1:]
+    # rho·n + along·d per coordinate, the sum formed in place (b + a: the same values)
+    x = along * d[:, :1]
+    x += lines.rho[:, None] * n[:, :1]
+    y = np.multiply(along, d[:, 1:], out=along)  # (along is not needed after this)
+    y += lines.rho[:, None] * n[:, 1:]
     # in place where the (N, L) temporaries allow: the same values, fewer passes
     xi, yi = np.rint(x, out=x).astype(np.intp), np.rint(y, out=y).astype(np.intp)
     # 0 <= v < size as one unsigned comparison (a negative v wraps to a huge one)
@@ -284,7 +287,7 @@ def support_profile(lines: Lines, edges: NDArray[np.uint8], grad: Gradients | No
         seen = grad.seen
     if seen is not None:  # beyond the raw field of view: out of view
         inside &= seen.ravel()[at] > 0
-        at *= inside
+    # (``at`` of a sample out of view is a pixel of the image still: read, then masked)
     hit = near.ravel()[at] > 0
     hit &= inside
     if grad is not None:
@@ -292,7 +295,8 @@ def support_profile(lines: Lines, edges: NDArray[np.uint8], grad: Gradients | No
         k = np.flatnonzero(hit)
         rows, px = k // hit.shape[1], at.ravel()[k]
         gx, gy = grad.dx.ravel()[px].astype(np.float64), grad.dy.ravel()[px].astype(np.float64)
-        across = np.abs(gx * n[rows, 0] + gy * n[rows, 1])
+        # (1-D gathers of each normal's x and y: cheaper than n[rows, 0], the same values)
+        across = np.abs(gx * n[:, 0].take(rows) + gy * n[:, 1].take(rows))
         hit.ravel()[k] = across >= np.cos(np.radians(max_angle_deg)) * np.hypot(gx, gy)
     cum = np.zeros((len(lines), len(t) + 1), dtype=np.int32)
     np.cumsum(hit, axis=1, out=cum[:, 1:])
