@@ -96,7 +96,11 @@ def hough_lines(edges: NDArray[np.uint8], min_votes: int, *, grad: Gradients | N
         at = (xy[:, 1] + y0) * grad.shape[1] + (xy[:, 0] + x0)
         in_crop = xy[:, 1] * crop.shape[1] + xy[:, 0]
         phi = np.arctan2(grad.dy.ravel()[at].astype(np.float32),
-                         grad.dx.ravel()[at].astype(np.float32)) % np.pi
+                         grad.dx.ravel()[at].astype(np.float32))
+        # phi % π without np.remainder (~6x slower): over arctan2's [-π, π] it is phi,
+        # phi + π or phi - π; the same float32 values, checked for every float32 there (but
+        # -0.0 stays -0.0 where % gives +0.0: the same x below, where a centre is subtracted)
+        phi = np.where(phi < 0, phi + np.pi, np.where(phi >= np.pi, phi - np.pi, phi))
         found = []
         width = np.pi / bins
         lo = [b * width for b in range(bins)]
