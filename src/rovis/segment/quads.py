@@ -523,7 +523,9 @@ def _corner_graph(lines: Lines, profile: SupportProfile, image_shape: tuple[int,
     inside = ((X[..., 0] > -m) & (X[..., 0] < w + m) & (X[..., 1] > -m) & (X[..., 1] < h + m))
     corner = (dth > np.radians(cfg.min_corner_deg)) & inside & inside.T
     ci, cj = _nonzero2(np.triu(corner, 1))
-    ok = _arm(profile, ci, T[ci, cj], cfg) & _arm(profile, cj, T[cj, ci], cfg)
+    # both lines' arms in one call (each test is its own: the same values, half the calls)
+    both = _arm(profile, np.concatenate([ci, cj]), np.concatenate([T[ci, cj], T[cj, ci]]), cfg)
+    ok = both[:len(ci)] & both[len(ci):]
     corner[:] = False
     corner[ci[ok], cj[ok]] = corner[cj[ok], ci[ok]] = True
     sep = np.abs(lines.rho[:, None] - lines.rho[None, :])
