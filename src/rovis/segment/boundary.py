@@ -288,9 +288,11 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
         lines = lines.take(lines.votes >= low)
     if len(lines) == 0:
         return Evaluation(T_H, low, 0.0, lines, Quads.empty(), 1)
-    profile = support_profile(lines, edges, grad, box=grad.box)
+    # the edges' 3×3 dilation (an edge within 1 px of a line supports it), once for both
+    near = cv2.dilate(edges, np.ones((3, 3), np.uint8))
+    profile = support_profile(lines, edges, grad, box=grad.box, near=near)
     if cfg.refine_lines:  # Hough's 1° cells, undone: a long side's corners keep their arms
-        lines, profile = refine_lines(lines, edges, profile, grad, box=grad.box)
+        lines, profile = refine_lines(lines, edges, profile, grad, box=grad.box, near=near)
     graph = _corner_graph(lines, profile, grad.shape, cfg.quads)  # (no area in it)
     quads = candidate_quads(lines, profile, grad.shape, area,
                             replace(cfg.quads, min_area_px=min(cfg.quads.min_area_px,

@@ -523,7 +523,9 @@ def _corner_graph(lines: Lines, profile: SupportProfile, image_shape: tuple[int,
     inside = ((X[..., 0] > -m) & (X[..., 0] < w + m) & (X[..., 1] > -m) & (X[..., 1] < h + m))
     corner = (dth > np.radians(cfg.min_corner_deg)) & inside & inside.T
     ci, cj = _nonzero2(np.triu(corner, 1))
-    ok = _arm(profile, ci, T[ci, cj], cfg) & _arm(profile, cj, T[cj, ci], cfg)
+    # both lines' arms in one call (each test is its own: the same values, half the calls)
+    both = _arm(profile, np.concatenate([ci, cj]), np.concatenate([T[ci, cj], T[cj, ci]]), cfg)
+    ok = both[:len(ci)] & both[len(ci):]
     corner[:] = False
     corner[ci[ok], cj[ok]] = corner[cj[ok], ci[ok]] = True
     sep = np.abs(lines.rho[:, None] - lines.rho[None, :])
@@ -604,17 +606,23 @@ def _shoelace(c: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def _convex_with_angles(c: NDArray[np.float64], min_deg: float) -> NDArray[np.bool_]:
-    e_in = c - c[:, [3, 0, 1, 2]]  # edge arriving at each corner
-    e_out = c[:, [1, 2, 3, 0]] - c
-    (ix, iy), (ox, oy) = np.moveaxis(e_in, -1, 0), np.moveaxis(e_out, -1, 0)
+    """Which quads (M, 4, 2) are convex with every interior angle in [min_deg, 180 -
+    min_deg] degrees."""
+    # corner by corner, (4, M) rows: reductions over the four corners along the first axis
+    # and each side's edge vector and length once (the edge leaving corner s arrives at
+    # s + 1), the same values as per corner from its arriving and leaving edges
+    x, y = np.ascontiguousarray(c.transpose(2, 1, 0))  # (x or y, corner, quad)
+    nxt, prv = [1, 2, 3, 0], [3, 0, 1, 2]
+    ox, oy = x[nxt] - x, y[nxt] - y  # edge leaving each corner (side s)
+    ix, iy = ox[prv], oy[prv]  # ...and arriving: the previous side
     z = ix * oy - iy * ox
-    convex = np.all(z > 0, axis=1) | np.all(z < 0, axis=1)
+    convex = np.all(z > 0, axis=0) | np.all(z < 0, axis=0)
     # the dot product and norms written out over x, y: what np.sum / np.linalg.norm
     # compute along the last axis, without their per-call and short-axis overhead
-    cosang = -(ix * ox + iy * oy) / (
-        np.sqrt(ix * ix + iy * iy) * np.sqrt(ox * ox + oy * oy) + 1e-12)
+    length = np.sqrt(ox * ox + oy * oy)
+    cosang = -(ix * ox + iy * oy) / (length[prv] * length + 1e-12)
     ang = np.degrees(np.arccos(np.clip(cosang, -1, 1)))
-    return convex & np.all((ang >= min_deg) & (ang <= 180 - min_deg), axis=1)
+    return convex & np.all((ang >= min_deg) & (ang <= 180 - min_deg), axis=0)
 
 
 class CoverSelection:
