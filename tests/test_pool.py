@@ -130,12 +130,18 @@ def test_pool_pairs_keeps_an_opposite_sided_pair_by_its_seen_sides(book):
     assert X[1:3, 2].min() > 0.10
     seen = np.array([[True, False, True, False]])  # sides 0 and 2 seen, 1 and 3 not
 
-    def pairs(desk=DESK, cfg=StereoConfig(), seen_left=seen, seen_right=seen):
+    def pairs(desk=DESK, cfg=StereoConfig(), seen_left=seen, seen_right=seen, right=right,
+              left=left, side_range=(0.05, 0.45)):
         return len(pool_pairs(left[None], right[None], rig.Q_L, rig.Q_R, desk_plane=desk,
-                              seen_left=seen_left, seen_right=seen_right, cfg=cfg))
+                              seen_left=seen_left, seen_right=seen_right, cfg=cfg,
+                              side_range=side_range))
 
     assert pairs(seen_left=None, seen_right=None) == 0  # by its corners: no cover
     assert pairs() == 1  # its seen sides lie at 3 cm
+    for r in range(1, 4):  # whatever corner the right quad starts at, its flags with it
+        assert pairs(right=np.roll(right, -r, axis=0), seen_right=np.roll(seen, -r, axis=1)) == 1
+    # the shape laid at that height must be a book's: not where 22 cm is over 1.5 x 12 cm
+    assert pairs(side_range=(0.05, 0.12)) == 0
     # the seen sides measured: 3 cm above the desk (the unseen ones not asked)
     h = _seen_side_heights(left[None], right[None], seen, rig.Q_L, rig.Q_R, DESK,
                            StereoConfig())[0]
@@ -146,6 +152,19 @@ def test_pool_pairs_keeps_an_opposite_sided_pair_by_its_seen_sides(book):
     # nor with the rule off, nor where one image saw every side (no opposite-sided pair)
     assert pairs(cfg=StereoConfig(pool_opposite=False)) == 0
     assert pairs(seen_right=np.ones((1, 4), bool)) == 0
+    # nor 20 cm above the desk (over StereoConfig.max_cover_height and its slack)
+    high = _rectangle(center=(0.42, 0.30), size=(0.22, 0.15), z=0.20, yaw_deg=10.0)
+    assert pairs(left=_ends_slid(order_corners(geometry.project(rig.Q_L, high)), 8.0),
+                 right=_ends_slid(order_corners(geometry.project(rig.Q_R, high)), -8.0)) == 0
+    # nor where stereo can measure no seen side: turned by -5 deg, sides 0 and 2 run within
+    # 10 deg of the epipolar lines
+    along = _rectangle(center=(0.42, 0.30), size=(0.22, 0.15), z=0.03, yaw_deg=-5.0)
+    left = _ends_slid(order_corners(geometry.project(rig.Q_L, along)), 8.0)
+    right = _ends_slid(order_corners(geometry.project(rig.Q_R, along)), -8.0)
+    h = _seen_side_heights(left[None], right[None], seen, rig.Q_L, rig.Q_R, DESK,
+                           StereoConfig())[0]
+    assert np.isnan(h).all()
+    assert pairs(left=left, right=right) == 0
 
 
 def test_a_book_from_the_pools_where_no_selection_kept_it(book):

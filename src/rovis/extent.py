@@ -493,8 +493,9 @@ def _edge(grad: Gradients, start: NDArray[np.float64], pts: NDArray[np.float64],
     gradient is more than ``max_angle_deg`` off the line's normal. With ``centre``, also the
     gradient across at the points themselves, whatever its angle (the same samples).
 
-    Either points ``pts`` (N, 2) on one line through ``start`` (2,), or, with ``along``
-    (D, 2), points (D, S, 2) on D lines of those directions (``start`` then unused).
+    Either points ``pts`` (N, 2) on one line through ``start`` (2,) (or (L, N, 2) on L lines
+    through ``start`` (L, 1, 2): :func:`_grow_side` asks both neighbours at once), or, with
+    ``along`` (D, 2), points (D, S, 2) on D lines of those directions (``start`` unused).
     """
     if along is None:
         direction = pts - start

@@ -51,7 +51,7 @@ from rovis.track import TrackConfig, follow
 from rovis.trim import (TrimConfig, cut_cover, grow_run, height_profile, map_height, print_grow,
                         trim_side)
 from rovis.stereo import (Match, StereoConfig, _point_segment_distance, find_in_other_view,
-                          flat_rectangle, match_quads, pool_pairs, side_lengths_and_corners)
+                          flat_rectangle, match_quads, pool_pairs, side_lengths_and_corner_cos)
 from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pass, on_plane,
                          print_goes_on, print_height, sweep_heights, texture_height)
 from rovis.undistort import IdealView
@@ -2323,8 +2323,9 @@ def _is_union(a: int, quads: NDArray[np.float64], area: NDArray[np.float64],
 def _skew_deg(P: NDArray[np.float64]) -> NDArray[np.float64]:
     """(4,): how far each corner's angle of a quad of world corners ``P`` (4, 3) lies from
     90° (degrees), corner k between side k - 1 and side k; 90° at both ends of a side of no
-    length (:func:`rovis.stereo.side_lengths_and_corners`, as :func:`flat_rectangle` asks)."""
-    return np.degrees(np.arcsin(np.clip(side_lengths_and_corners(P)[1], 0.0, 1.0)))
+    length (:func:`rovis.stereo.side_lengths_and_corner_cos`, as :func:`flat_rectangle`
+    asks)."""
+    return np.degrees(np.arcsin(np.clip(side_lengths_and_corner_cos(P)[1], 0.0, 1.0)))
 
 
 def _tilt_deg(pose: geometry.BookPose, desk_plane: NDArray[np.float64] | None) -> float:

@@ -81,7 +81,7 @@ class StereoConfig:
     # A pair whose two opposite sides both images saw and whose other two neither did (two
     # plain books end to end, their ends unseen) has its corners where each image's edges
     # happened to end, centimetres off in depth: pool_pairs asks of it only that its seen
-    # sides lie at a cover's height and that it is roughly a rectangle (pool_pairs)
+    # sides lie at a cover's height and that it is roughly a rectangle
     pool_opposite: bool = True
     # A pair that refines to no flat cover and has every side seen in one image or the
     # other is refit as one rectangle parallel to the desk (as DetectConfig.flat_refit_px);
@@ -248,15 +248,17 @@ def pool_pairs(pool_left: ArrayLike, pool_right: ArrayLike, Q_L: ArrayLike, Q_R:
         :func:`flat_rectangle`'s gates.
     seen_left, seen_right : array_like, shape (K, 4) and (M, 4), bool, optional
         Which sides of each candidate lie on a Hough line (side s from corner s to s + 1;
-        ``Quads.lines >= 0``). With both and ``cfg.pool_opposite``, a pair whose two
-        opposite sides both images saw and whose other two neither did (as
-        :func:`rovis.segment.quads.opposite_sided_quads` gives) is kept if it is roughly a
-        rectangle (sides within half the lower and 1.5 times the upper ``side_range``,
-        angles within 45° of 90°) and each seen side lies at a cover's height
-        (:func:`_seen_side_heights`) instead of by its corners' flatness: its corners are
-        where each image's edges happened to end, and along a side a few pixels are
-        centimetres of depth. The caller places its unseen sides in 3D
-        (:func:`rovis.extent.complete_open`).
+        ``Quads.lines >= 0``). With both, the desk plane and ``cfg.pool_opposite``, a pair
+        whose two opposite sides both images saw and whose other two neither did (as
+        :func:`rovis.segment.quads.opposite_sided_quads` gives) is judged, instead of by
+        its corners' flatness (its corners are where each image's edges happened to end,
+        and along a side a few pixels are centimetres of depth), by its seen sides: each
+        that stereo can measure (:func:`_seen_side_heights`) must lie from
+        ``cfg.min_height`` to ``cfg.max_cover_height`` + ``height_slack`` above the desk,
+        one at least must be measurable, and both images' quads laid at their median
+        height must roughly be a rectangle (sides within half the lower and 1.5 times the
+        upper ``side_range``, angles within 45° of 90°). The caller places its unseen
+        sides in 3D (:func:`rovis.extent.complete_open`).
 
     Returns
     -------
@@ -311,15 +313,15 @@ def pool_pairs(pool_left: ArrayLike, pool_right: ArrayLike, Q_L: ArrayLike, Q_R:
             level = np.zeros(len(opposite))
             if at_cover.any():  # (there every height is finite or NaN, one at least finite)
                 level[at_cover] = np.nanmedian(h[at_cover], axis=1)
-            laid = 0.5 * (_laid(Q_L, qL[i[opposite]], desk_plane, level)
-                          + _laid(Q_R, corners_r[opposite], desk_plane, level))
+            laid = 0.5 * (_at_height(Q_L, qL[i[opposite]], desk_plane, level)
+                          + _at_height(Q_R, corners_r[opposite], desk_plane, level))
             ok[opposite] = at_cover & flat_rectangle(
                 laid, side_range=(0.5 * side_range[0], 1.5 * side_range[1]), max_skew_deg=45.0)
     return PoolPairs(i[ok], j[ok], corners_r[ok], s_best[ok], e_best[ok])
 
 
-def _laid(Q: NDArray[np.float64], px: NDArray[np.float64], desk_plane: ArrayLike,
-          height: NDArray[np.float64]) -> NDArray[np.float64]:
+def _at_height(Q: NDArray[np.float64], px: NDArray[np.float64], desk_plane: ArrayLike,
+               height: NDArray[np.float64]) -> NDArray[np.float64]:
     """Quads' pixels ``px`` (N, 4, 2) back-projected onto the desk's parallels at
     ``height`` (N,) metres above it: world corners (N, 4, 3)."""
     plane = np.asarray(desk_plane, dtype=np.float64)
@@ -351,8 +353,9 @@ def _seen_side_heights(left: NDArray[np.float64], right: NDArray[np.float64],
     ndarray, shape (N, 4)
         NaN for a side not measured or within ``min_angle_deg`` of its epipolar segment
         (along the epipolar lines a side has no disparity); +inf where the right side
-        crosses the segment's line outside the segment (below the desk or above
-        ``cfg.max_height``).
+        crosses the segment's line outside the segment (above ``cfg.max_height``, or more
+        than 2 % of its depth below the desk: a little below the desk reads as a negative
+        height).
     """
     out = np.full(seen.shape, np.nan)
     n, s = np.nonzero(seen)
@@ -369,7 +372,8 @@ def _seen_side_heights(left: NDArray[np.float64], right: NDArray[np.float64],
                                       * np.linalg.norm(side, axis=1), 1e-12)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = ((c[:, 0] - near[:, 0]) * side[:, 1] - (c[:, 1] - near[:, 1]) * side[:, 0]) / cross
-    on = np.where(np.isfinite(t)[:, None], near + t[:, None] * seg, near)  # (parallel: NaN)
+    # (parallel: t infinite or NaN, the side's height NaN below; 0 here, no inf · 0)
+    on = near + np.where(np.isfinite(t), t, 0.0)[:, None] * seg
     X = geometry.triangulate_dlt(Q_L, Q_R, mid, on)
     h = geometry.plane_distance(np.asarray(desk_plane, dtype=np.float64), X)
     h = np.where((t >= 0.0) & (t <= 1.0), h, np.inf)
@@ -377,7 +381,8 @@ def _seen_side_heights(left: NDArray[np.float64], right: NDArray[np.float64],
     return out
 
 
-def side_lengths_and_corners(P: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def side_lengths_and_corner_cos(P: ArrayLike,
+                                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The sides' lengths of quads of world corners ``P`` (..., 4, 3) and how far each
     corner's angle is from a right angle.
 
@@ -406,8 +411,9 @@ def flat_rectangle(P: ArrayLike, desk_plane: ArrayLike | None = None, *,
                    height_range: tuple[float, float] = (0.0, 0.10)) -> NDArray[np.bool_]:
     """Which quads of world corners ``P`` (N, 4, 3) could be a book's cover on the desk.
 
-    Every side within ``side_range`` (metres), every angle within ``max_skew_deg`` of 90°;
-    with the desk plane, the normal of the diagonals within ``max_tilt_deg`` of the desk's
+    Every side within ``side_range`` (metres), every angle within ``max_skew_deg`` of 90°
+    (a side of no length makes none: :func:`side_lengths_and_corner_cos`); with the desk
+    plane, the normal of the diagonals within ``max_tilt_deg`` of the desk's
     and every corner within ``height_range`` (metres) above it.
 
     Returns
@@ -415,7 +421,7 @@ def flat_rectangle(P: ArrayLike, desk_plane: ArrayLike | None = None, *,
     ndarray, shape (N,), bool
     """
     P = np.asarray(P, dtype=np.float64).reshape(-1, 4, 3)
-    length, cos = side_lengths_and_corners(P)
+    length, cos = side_lengths_and_corner_cos(P)
     with np.errstate(invalid="ignore"):
         ok = (np.all(np.isfinite(P), axis=(1, 2))
               & np.all((length >= side_range[0]) & (length <= side_range[1]), axis=1)
