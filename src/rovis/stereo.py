@@ -28,6 +28,7 @@ from scipy.optimize import linear_sum_assignment
 from rovis import geometry
 from rovis.segment.boundary import refine_quad
 from rovis.segment.edges import Gradients
+from rovis.sweep import on_plane
 
 _PATCH = (48, 36)  # rectified cover patch, px
 _PLAIN_STD = 4.0  # grey levels: a cover patch varying less than this is plain
@@ -313,24 +314,12 @@ def pool_pairs(pool_left: ArrayLike, pool_right: ArrayLike, Q_L: ArrayLike, Q_R:
             level = np.zeros(len(opposite))
             if at_cover.any():  # (there every height is finite or NaN, one at least finite)
                 level[at_cover] = np.nanmedian(h[at_cover], axis=1)
-            laid = 0.5 * (_at_height(Q_L, qL[i[opposite]], desk_plane, level)
-                          + _at_height(Q_R, corners_r[opposite], desk_plane, level))
+            laid = np.array([0.5 * (on_plane(Q_L, a, desk_plane, z)
+                                    + on_plane(Q_R, b, desk_plane, z))
+                             for a, b, z in zip(qL[i[opposite]], corners_r[opposite], level)])
             ok[opposite] = at_cover & flat_rectangle(
                 laid, side_range=(0.5 * side_range[0], 1.5 * side_range[1]), max_skew_deg=45.0)
     return PoolPairs(i[ok], j[ok], corners_r[ok], s_best[ok], e_best[ok])
-
-
-def _at_height(Q: NDArray[np.float64], px: NDArray[np.float64], desk_plane: ArrayLike,
-               height: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Quads' pixels ``px`` (N, 4, 2) back-projected onto the desk's parallels at
-    ``height`` (N,) metres above it: world corners (N, 4, 3)."""
-    plane = np.asarray(desk_plane, dtype=np.float64)
-    n = plane[:3] / np.linalg.norm(plane[:3])
-    d = plane[3] / np.linalg.norm(plane[:3])
-    C, rays = _rays(Q, px.reshape(-1, 2))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = (np.repeat(height, 4) - (n @ C + d)) / (rays @ n)
-    return (C + s[:, None] * rays).reshape(-1, 4, 3)
 
 
 def _seen_side_heights(left: NDArray[np.float64], right: NDArray[np.float64],
