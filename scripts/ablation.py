@@ -36,6 +36,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the smooth height map (covers without print)", ["heightmap.smooth=false"]),
     ("one image's candidate looked for in the other", ["stereo.pool_transfer=false"]),
     ("the facing sides' edge", ["facing.enabled=false"]),
+    ("a side on its block's foot in one image", ["facing.block_sides=false"]),
     ("a side on its foot, lifted", ["lift_foot=false"]),
     ("the height from the sides", ["side_height.enabled=false"]),
     ("the extent step", ["extent.grow=false", "extent.shrink=false"]),

@@ -630,6 +630,104 @@ def test_sides_both_images_agree_on_stay(lone_book):
     assert extent.settle_facing_sides(truth, Q, grads, desk) is None
 
 
+# -- a side on its page block's foot in one image only (extent.settle_block_sides)
+
+@pytest.fixture(scope="module")
+def tall_book_aside():
+    """build/t2's scene 49 (rovis synth --protocol table2 --n 64 --seed 1: 30 lx,
+    daylight): book 6, a light cover 4.6 cm thick left of the image centre, whose
+    right-hand page block the right camera sees and the left hardly; the rendering and its
+    corners (4, 3), the projections, the desk plane and that side."""
+    from rovis.synth.dataset import dataset_scenes
+
+    sc = next(s for k, s in dataset_scenes("table2", 50, seed=1) if k == 49)
+    r = render(sc, np.random.default_rng([1, 9, 49]))
+    P = np.array(r.truth["books"][6]["corners"])
+    Q = {"left": sc.rig.Q_L, "right": sc.rig.Q_R}
+    desk = np.asarray(r.truth["desk_plane"])
+    drop = -geometry.plane_distance(desk, P[:1])[0] * desk[:3]
+    shows = [[extent._block_shows(P, k, Q, drop, cams=(cam,)) for cam in ("left", "right")]
+             for k in range(4)]
+    s = next(k for k in range(4) if shows[k] == [False, True])
+    return sc, r, P, Q, desk, s
+
+
+def _one_side_moved(P, Q, s, share):
+    """Both images' corners of cover ``P``, the right image's side ``s`` moved outward by
+    ``share`` of its page block's width there (1: onto the block's foot)."""
+    corners = {cam: geometry.project(Q[cam], P) for cam in Q}
+    foot = _side_on_its_foot(P, Q["right"], s)
+    corners["right"] = corners["right"] + share * (foot - corners["right"])
+    return corners
+
+
+def test_a_side_on_its_block_in_one_image_is_moved_to_the_cover_height(tall_book_aside):
+    # the right image took the side at its page block's foot (3-4 px out), the left at the
+    # cover's edge: the side's corners triangulate centimetres low
+    _, _, P, Q, desk, s = tall_book_aside
+    truth = {cam: geometry.project(Q[cam], P) for cam in Q}
+    corners = _one_side_moved(P, Q, s, 1.0)
+    assert np.abs(corners["right"] - truth["right"]).max() > 2.5  # px
+    before = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
+    assert np.linalg.norm(before - P, axis=1).max() > 0.02  # m
+    got = extent.settle_block_sides(corners, Q, desk)
+    assert got is not None
+    np.testing.assert_allclose(got["left"], corners["left"], atol=1e-9)  # kept
+    assert np.abs(got["right"] - truth["right"]).max() < 0.05  # px: on the cover edge
+    after = geometry.triangulate(Q["left"], Q["right"], got["left"], got["right"])
+    assert np.linalg.norm(after - P, axis=1).max() < 0.001  # m
+    # half-way to the foot (a blurred edge) is moved too
+    assert extent.settle_block_sides(_one_side_moved(P, Q, s, 0.5), Q, desk) is not None
+
+
+@pytest.mark.parametrize("share", [0.0, -0.3, 2.0])
+def test_a_side_off_its_block_stays(tall_book_aside, share):
+    # where both images agree, or the right image's side lies inside the cover or beyond
+    # its block's foot (some other edge), nothing moves
+    _, _, P, Q, desk, s = tall_book_aside
+    assert extent.settle_block_sides(_one_side_moved(P, Q, s, share), Q, desk) is None
+
+
+@pytest.mark.parametrize("band, moves", [((0.3, 1.3), True), ((1.1, 1.3), False),
+                                         ((0.0, 0.9), False)])
+def test_the_side_must_lie_on_the_block(tall_book_aside, band, moves):
+    # the right image's side on the block's foot: moved only where the band of the block's
+    # width outside the cover's edge holds it
+    _, _, P, Q, desk, s = tall_book_aside
+    got = extent.settle_block_sides(_one_side_moved(P, Q, s, 1.0), Q, desk,
+                                    extent.FacingConfig(block_share=band))
+    assert (got is not None) == moves
+
+
+def test_a_side_whose_block_both_images_see_is_left_to_its_edges(tall_book_aside):
+    # the near side (its block below it in both images) on its foot in the right image:
+    # which edge is the cover's is settle_facing_sides' question, asked of the image
+    _, _, P, Q, desk, s = tall_book_aside
+    drop = -geometry.plane_distance(desk, P[:1])[0] * desk[:3]
+    near = next(k for k in range(4) if all(extent._block_shows(P, k, Q, drop, cams=(cam,))
+                                           for cam in ("left", "right")))
+    assert extent.settle_block_sides(_one_side_moved(P, Q, near, 1.0), Q, desk) is None
+
+
+@pytest.mark.parametrize("block_sides", [True, False])
+def test_detect_finds_the_tall_book_at_its_height(tall_book_aside, block_sides):
+    # the scene's segmentation gives book 6 with its right-hand side on the block's foot
+    # in the right image: fitted flat, the book came out 1.9 cm low
+    sc, r, P, _, _, _ = tall_book_aside
+    cfg = DetectConfig()
+    cfg = replace(cfg, facing=replace(cfg.facing, block_sides=block_sides))
+    res = Detector(sc.rig, cfg).detect(r.left, r.right)
+    truth = r.truth["books"][6]
+    book = min(res.objects, key=lambda o: np.linalg.norm(o.pose.center[:2] - truth["center"][:2]))
+    assert np.linalg.norm(book.pose.center[:2] - truth["center"][:2]) < 0.03  # m
+    height_error = abs(book.pose.size[2] - truth["size"][2])
+    if block_sides:
+        assert height_error < 0.003  # m
+        assert np.linalg.norm(book.corners_world - P, axis=1).max() < 0.006  # m
+    else:
+        assert height_error > 0.01
+
+
 # -- a side on its page block's foot in both images, lifted (extent.lift_foot)
 
 def _side_on_its_foot(P, Q, s):

@@ -37,6 +37,11 @@ cannot tell (a side along the epipolar lines, a fit that fails), the moves stand
 side's neighbours continue: each side moves out to the edge beyond a margin of the
 cover's tone.
 
+:func:`settle_facing_sides` and :func:`settle_block_sides` settle a side whose page block
+shows, where the two images took different edges of it (the block's foot, boards, page
+rows, the cover's own edge): at the height the cover's other sides give, the images'
+lines must meet.
+
 :func:`complete_open` places the sides of a cover candidate that no image saw (a three-,
 two- or opposite-sided candidate of the segmentation) the same way: its seen sides give
 the cover's height and orientation, and each unseen side goes where both images show a
@@ -45,7 +50,7 @@ step at once.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -555,13 +560,14 @@ def _foot_is_edge(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float6
 
 
 def _block_shows(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
-                 drop: NDArray[np.float64], min_px: float = 1.0) -> bool:
-    """Whether the page block below side ``s`` of cover ``P`` (4, 3) shows in either image:
-    its foot (the side moved by ``drop``, onto the desk) lies at least ``min_px`` outside
-    the cover."""
+                 drop: NDArray[np.float64], min_px: float = 1.0,
+                 cams: tuple[str, ...] = ("left", "right")) -> bool:
+    """Whether the page block below side ``s`` of cover ``P`` (4, 3) shows in any image of
+    ``cams``: its foot (the side moved by ``drop``, onto the desk) lies at least ``min_px``
+    outside the cover."""
     a, b = P[s], P[(s + 1) % 4]
     mid = 0.5 * (a + b)
-    for cam in ("left", "right"):
+    for cam in cams:
         q = geometry.project(Q[cam], np.array([a, b, mid, mid + drop]))
         n_out = np.array([q[1, 1] - q[0, 1], q[0, 0] - q[1, 0]])
         n_out /= max(float(np.linalg.norm(n_out)), 1e-9)
@@ -729,12 +735,20 @@ class FacingConfig:
     plane, lie more than ``tol`` apart across it, onto edges that lie within ``tol``;
     candidate edges are looked for up to ``max_px`` pixels (and a fifth of the quad's
     width) either way across it.
+
+    ``block_sides`` turns on :func:`settle_block_sides` (the pipeline's flat refit of a
+    tilted pair): a side whose page block shows ``block_px`` pixels or more in one image
+    only, there ``block_share`` (low, high) of the block's width outside where the other
+    image's side lies at the cover's height, is moved there.
     """
 
     enabled: bool = True
     tol: float = 0.002
     max_sigma: float = 0.004
     max_px: float = 25.0
+    block_sides: bool = True
+    block_px: float = 1.0
+    block_share: tuple[float, float] = (0.3, 1.3)
 
 
 def settle_facing_sides(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],
@@ -758,13 +772,10 @@ def settle_facing_sides(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
     it, the smallest such move. A side along the epipolar lines has no height of its own,
     but two different edges of its block still back-project apart on the plane.
     """
-    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
-    offset = float(desk_plane[3] / np.linalg.norm(desk_plane[:3]))
     P = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
     if not np.all(np.isfinite(P)):
         return None
-    lines = {cam: [(0.5 * (c[s] + c[(s + 1) % 4]), _unit(c[(s + 1) % 4] - c[s])) for s in range(4)]
-             for cam, c in corners.items()}
+    lines = _side_lines(corners)
 
     def inward(cam: str, s: int) -> NDArray[np.float64]:
         c = corners[cam]
@@ -773,36 +784,18 @@ def settle_facing_sides(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
         return n if n @ (c.mean(axis=0) - lines[cam][s][0]) > 0 else -n
 
     facing = [_faces_down(corners, s, down) for s in range(4)]
-    ref = []
-    for s in range(4):
-        if not facing[s]:
-            a, b = P[s], P[(s + 1) % 4]
-            z, sigma = _line_height({cam: lines[cam][s] for cam in corners}, a, b, Q, up)
-            if sigma <= cfg.max_sigma:
-                ref.append(float(up @ (0.5 * (a + b)) + offset) + z)
-    if not ref:
+    h_ref = _cover_height(lines, P, facing, Q, desk_plane, cfg.max_sigma)
+    if h_ref is None:
         return None
-    h_ref = float(np.median(ref))
-    origin = -offset * up + h_ref * up  # a point of the cover plane
 
     def across(fit: Fit, cam: str, m: NDArray[np.float64], n: NDArray[np.float64]) -> float:
-        # where the image line, back-projected (a plane through the camera), meets the
-        # cover plane: its offset from m along n (in the cover plane, across the side)
-        p, d = fit
-        line = np.array([-d[1], d[0], d[1] * p[0] - d[0] * p[1]]) @ Q[cam]  # its plane (4,)
-        denom = float(line[:3] @ n)
-        return float("nan") if abs(denom) < 1e-12 else -float(line[:3] @ m + line[3]) / denom
+        return _across(fit, Q[cam], m, n)
 
     moved = False
     for s in range(4):
         if not facing[s]:
             continue
-        a, b = P[s], P[(s + 1) % 4]
-        e = _unit(b - a - ((b - a) @ up) * up)
-        n = np.cross(up, e)
-        mid = 0.5 * (a + b)
-        m = mid - ((mid - origin) @ up) * up  # the side's midpoint on the cover plane
-        now = [across(lines[cam][s], cam, m, n) for cam in ("left", "right")]
+        m, n, now = _apart(lines, P, s, Q, desk_plane, h_ref)
         if not np.all(np.isfinite(now)) or abs(now[0] - now[1]) <= cfg.tol:
             continue
         options: dict[str, list[tuple[float, Fit]]] = {}
@@ -830,14 +823,140 @@ def settle_facing_sides(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
         if best is not None:
             lines["left"][s], lines["right"][s] = best
             moved = True
-    if not moved:
+    return _corners_of(lines, corners) if moved else None
+
+
+def settle_block_sides(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],
+                       desk_plane: NDArray[np.float64], cfg: FacingConfig = FacingConfig(),
+                       ) -> dict[str, NDArray[np.float64]] | None:
+    """A stereo pair's corners (4, 2) per camera with each side that one image saw on its
+    page block's foot moved, in that image, to where the other image's side lies at the
+    cover's height; None if no side moves.
+
+    A book's page block shows below a side where the block's face is turned to the
+    camera: below the near side in both images, and below a side end-on to the baseline in
+    one image only (the right camera sees more of a book's right-hand face than the left
+    does). Where it shows in one image only, that image's segmentation may take the
+    block's outer edge (its foot, often the stronger step) for the side while the other
+    takes the cover's own: the side's disparity is off by the block's width and the cover
+    comes out tilted, or, fitted flat, centimetres low (build/t2 scene 49: a 4.6 cm book
+    fitted at 2.7 cm). :func:`settle_facing_sides` asks the image for an edge that agrees;
+    the cover's edge beside a lit block is often too faint to be one.
+
+    The cover's height is the median of the stereo heights of the sides whose block
+    shows in neither image (as in :func:`settle_facing_sides`, placed to within
+    ``cfg.max_sigma``). A side whose block shows ``cfg.block_px`` or more in one image only
+    (:func:`_block_shows`, the cover where its corners are, and again with the side at
+    that height) and whose two images' lines, back-projected onto the cover's plane at
+    that height, lie more than ``cfg.tol`` apart, is moved in the image where the block
+    shows to where the other image's line lies on that plane, if it lies outside that by
+    ``cfg.block_share`` of the block's width there (on the foot, not on some other edge).
+    The corners a tilted pair triangulates to are where the blocks are judged first: a
+    side's image moved far enough (beyond its foot, or inward) reads as a cover high or
+    low enough there for a block to show in both images, or in neither.
+    """
+    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+    P = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
+    if not np.all(np.isfinite(P)):
         return None
+    drop = -geometry.plane_distance(desk_plane, P.mean(axis=0)[None])[0] * up
+    shows = np.array([[_block_shows(P, s, Q, drop, cfg.block_px, cams=(cam,))
+                       for cam in ("left", "right")] for s in range(4)])  # (4 sides, 2)
+    lines = _side_lines(corners)
+    h_ref = _cover_height(lines, P, ~shows.any(axis=1), Q, desk_plane, cfg.max_sigma)
+    if h_ref is None:
+        return None
+    moved = False
+    for s in np.flatnonzero(shows.sum(axis=1) == 1):
+        _, _, now = _apart(lines, P, s, Q, desk_plane, h_ref)
+        if not np.all(np.isfinite(now)) or abs(now[0] - now[1]) <= cfg.tol:
+            continue
+        cam, other = ("left", "right") if shows[s, 0] else ("right", "left")
+        # the other image's line on the cover plane at h_ref, seen from each camera: where
+        # the cover's edge lies there, and the block's foot below it (the block must show
+        # below it at that height too, in ``cam`` only)
+        p, d = lines[other][s]
+        W = on_plane(Q[other], np.array([p - 20.0 * d, p + 20.0 * d]), desk_plane, h_ref)
+        seen = {}
+        for c in (cam, other):
+            q = geometry.project(Q[c], np.vstack([W, W.mean(axis=0) - h_ref * up]))
+            edge = 0.5 * (q[0] + q[1])
+            n_out = _unit(np.array([q[0, 1] - q[1, 1], q[1, 0] - q[0, 0]]))
+            if n_out @ (edge - corners[c].mean(axis=0)) < 0:
+                n_out = -n_out
+            seen[c] = (edge, _unit(q[1] - q[0]), n_out, float(n_out @ (q[2] - edge)))
+        edge, d_edge, n_out, width = seen[cam]
+        if width < cfg.block_px or seen[other][3] >= cfg.block_px:
+            continue
+        out = float(n_out @ (lines[cam][s][0] - edge))
+        if cfg.block_share[0] * width <= out <= cfg.block_share[1] * width:
+            lines[cam][s] = (edge, d_edge)
+            moved = True
+    return _corners_of(lines, corners) if moved else None
+
+
+def _side_lines(corners: dict[str, NDArray[np.float64]]) -> dict[str, list[Fit]]:
+    """Per camera, each side s (corner s to s + 1) of a quad (4, 2) as a line: (midpoint,
+    unit direction)."""
+    return {cam: [(0.5 * (c[s] + c[(s + 1) % 4]), _unit(c[(s + 1) % 4] - c[s])) for s in range(4)]
+            for cam, c in corners.items()}
+
+
+def _cover_height(lines: dict[str, list[Fit]], P: NDArray[np.float64], use: Sequence[bool],
+                  Q: dict[str, NDArray[np.float64]], desk_plane: NDArray[np.float64],
+                  max_sigma: float) -> float | None:
+    """The median height above the desk (metres) of the sides ``use`` of cover ``P``
+    (4, 3) that stereo places to within ``max_sigma`` (:func:`_line_height` of both
+    images' ``lines``), or None where none is."""
+    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+    offset = float(desk_plane[3] / np.linalg.norm(desk_plane[:3]))
+    ref = []
+    for s in range(4):
+        if use[s]:
+            a, b = P[s], P[(s + 1) % 4]
+            z, sigma = _line_height({cam: lines[cam][s] for cam in lines}, a, b, Q, up)
+            if sigma <= max_sigma:
+                ref.append(float(up @ (0.5 * (a + b)) + offset) + z)
+    return float(np.median(ref)) if ref else None
+
+
+def _apart(lines: dict[str, list[Fit]], P: NDArray[np.float64], s: int,
+           Q: dict[str, NDArray[np.float64]], desk_plane: NDArray[np.float64], height: float,
+           ) -> tuple[NDArray[np.float64], NDArray[np.float64], list[float]]:
+    """Side ``s`` of cover ``P`` (4, 3) on the plane ``height`` above the desk: its
+    midpoint there, its normal in that plane, and where each image's line (left, right)
+    back-projects onto that plane, as offsets from the midpoint along the normal."""
+    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+    origin = -float(desk_plane[3] / np.linalg.norm(desk_plane[:3])) * up + height * up
+    a, b = P[s], P[(s + 1) % 4]
+    n = np.cross(up, _unit(b - a - ((b - a) @ up) * up))
+    mid = 0.5 * (a + b)
+    m = mid - ((mid - origin) @ up) * up  # the side's midpoint on that plane
+    return m, n, [_across(lines[cam][s], Q[cam], m, n) for cam in ("left", "right")]
+
+
+def _across(fit: Fit, Q: NDArray[np.float64], m: NDArray[np.float64],
+            n: NDArray[np.float64]) -> float:
+    """Where image line ``fit`` (point, direction), back-projected through camera ``Q`` (a
+    plane), meets a plane parallel to the desk: its offset from ``m`` (in that plane)
+    along ``n`` (across the side, in that plane); NaN where it runs along ``n``."""
+    p, d = fit
+    line = np.array([-d[1], d[0], d[1] * p[0] - d[0] * p[1]]) @ Q  # its plane (4,)
+    denom = float(line[:3] @ n)
+    return float("nan") if abs(denom) < 1e-12 else -float(line[:3] @ m + line[3]) / denom
+
+
+def _corners_of(lines: dict[str, list[Fit]], corners: dict[str, NDArray[np.float64]],
+                max_move_px: float = 40.0) -> dict[str, NDArray[np.float64]] | None:
+    """Per camera, the corners (4, 2) where ``lines``' sides meet (corner k joins side
+    k - 1 and side k), or None where two do not meet within ``max_move_px`` of the
+    corner they replace."""
     out = {}
     for cam, c in corners.items():
         new = c.copy()
-        for k in range(4):  # corner k joins side k-1 and side k
+        for k in range(4):
             p = intersect(*lines[cam][k - 1], *lines[cam][k])
-            if p is None or np.linalg.norm(p - c[k]) > 40.0:
+            if p is None or np.linalg.norm(p - c[k]) > max_move_px:
                 return None
             new[k] = p
         out[cam] = new

@@ -33,7 +33,7 @@ from rovis.calib import StereoRig
 from rovis.extent import (CompleteConfig, ExtentConfig, FacingConfig, SideHeightConfig,
                           _drop, _foot_is_edge, _grow_side, _moved, _on_desk, _side_scores, _unit,
                           complete_open, fit_pair_extent, height_from_sides, lift_foot,
-                          settle_facing_sides, strong_share)
+                          settle_block_sides, settle_facing_sides, strong_share)
 from rovis.heightmap import (HeightMap, HeightMapConfig, Rectification, dense_height_map,
                              height_map, raised_covers, smooth_height_map, snap_sides,
                              sweeps_confirm)
@@ -145,8 +145,10 @@ class DetectConfig:
         refining each image alone gives no flat cover (:func:`rovis.extent.complete_open`;
         beyond the paper; needs the desk plane). ``facing``: a side facing the camera
         settled on the page-block edge both images share, before the extent step
-        (:func:`rovis.extent.settle_facing_sides`; beyond the paper; needs the desk
-        plane). ``sweep``: each
+        (:func:`rovis.extent.settle_facing_sides`), and, in a tilted pair's flat refit,
+        a side one image saw on its page block's foot moved to the cover's height
+        (``facing.block_sides``, :func:`rovis.extent.settle_block_sides`; beyond the
+        paper; need the desk plane). ``sweep``: each
         cover's height tested against its print, and a printed cover found in one image
         only placed in the other by its print (:mod:`rovis.sweep`; beyond the paper; needs
         the desk plane; the placing also ``stereo.transfer``).
@@ -1887,6 +1889,30 @@ class Detector:
     def _flat_refit(self, rig: StereoRig, pair: Pair, desk_plane: NDArray[np.float64],
                     texture: dict[str, NDArray[np.float32]] | None,
                     ) -> tuple[Pair, BookDetection, str] | None:
+        """The pair as one rectangle parallel to the desk (:meth:`_flat_fit`), or None.
+
+        First, where one image saw a side on its page block's foot and the other on the
+        cover's edge (a side end-on to the baseline: the tilt is that side's disparity),
+        that image's side is moved to the cover's height the other sides give
+        (:func:`rovis.extent.settle_block_sides`; ``facing.block_sides``), and the moved
+        pair fitted flat, or as it is; where that makes no book, the pair as it came."""
+        if self.cfg.facing.block_sides:
+            settled = settle_block_sides({"left": pair.left, "right": pair.right},
+                                         {"left": rig.Q_L, "right": rig.Q_R}, desk_plane,
+                                         self.cfg.facing)
+            if settled is not None:
+                moved = replace(pair, left=settled["left"], right=settled["right"])
+                out = self._flat_fit(rig, moved, desk_plane, texture)
+                if out is None:
+                    trial = self._reconstruct_or_why(rig, moved, desk_plane, texture)
+                    out = trial if trial[1] is not None else None
+                if out is not None:
+                    return out
+        return self._flat_fit(rig, pair, desk_plane, texture)
+
+    def _flat_fit(self, rig: StereoRig, pair: Pair, desk_plane: NDArray[np.float64],
+                  texture: dict[str, NDArray[np.float32]] | None,
+                  ) -> tuple[Pair, BookDetection, str] | None:
         """The pair as one rectangle parallel to the desk (:func:`rovis.geometry.fit_rectangle`
         with the desk plane), its corners projected into both images, if each image's
         corners lie within ``flat_refit_px`` of the rectangle's and it passes the pose
