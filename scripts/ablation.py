@@ -29,6 +29,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the other T_H's candidates, paired last", ["segment.late_open=false"]),
     ("the candidate pool (stereo step 4)", ["stereo.pool=false"]),
     ("completing a candidate in 3D", ["complete.enabled=false"]),
+    ("a flat height sweep refused", ["complete.sweep_margin=0"]),
     ("the one-image search (stereo step 3)", ["stereo.transfer=false"]),
     ("the alternatives (stereo step 2)", ["stereo.alternatives=false"]),
     ("the print's height test and placing", ["sweep.check=false", "sweep.transfer=false"]),

@@ -729,7 +729,8 @@ class FacingConfig:
     """Choosing, for a cover's sides facing the camera, which edge of the page block below
     each is the cover's in both images (:func:`settle_facing_sides`; metres unless noted).
 
-    ``enabled`` turns it on; the cover's height is the median of its other sides' stereo
+    ``enabled`` turns on :func:`settle_facing_sides` (``block_sides`` is a switch of its
+    own); the cover's height is the median of its other sides' stereo
     heights placed to within ``max_sigma`` (for a 0.1 px error of each image's line); a
     facing side is settled where its two images' lines, back-projected onto the cover's
     plane, lie more than ``tol`` apart across it, onto edges that lie within ``tol``;
@@ -739,7 +740,9 @@ class FacingConfig:
     ``block_sides`` turns on :func:`settle_block_sides` (the pipeline's flat refit of a
     tilted pair): a side whose page block shows ``block_px`` pixels or more in one image
     only, there ``block_share`` (low, high) of the block's width outside where the other
-    image's side lies at the cover's height, is moved there.
+    image's side lies at the cover's height, is moved there. (Which blocks show is asked
+    first where the tilted pair triangulates: a side far enough out reads as a cover low
+    enough there for no block to show, which narrows the band in practice.)
     """
 
     enabled: bool = True
@@ -784,7 +787,7 @@ def settle_facing_sides(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
         return n if n @ (c.mean(axis=0) - lines[cam][s][0]) > 0 else -n
 
     facing = [_faces_down(corners, s, down) for s in range(4)]
-    h_ref = _cover_height(lines, P, facing, Q, desk_plane, cfg.max_sigma)
+    h_ref = _cover_height(lines, P, [not f for f in facing], Q, desk_plane, cfg.max_sigma)
     if h_ref is None:
         return None
 
@@ -859,7 +862,7 @@ def settle_block_sides(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDA
     P = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
     if not np.all(np.isfinite(P)):
         return None
-    drop = -geometry.plane_distance(desk_plane, P.mean(axis=0)[None])[0] * up
+    drop = _drop(P, desk_plane)
     shows = np.array([[_block_shows(P, s, Q, drop, cfg.block_px, cams=(cam,))
                        for cam in ("left", "right")] for s in range(4)])  # (4 sides, 2)
     lines = _side_lines(corners)
@@ -902,7 +905,8 @@ def _side_lines(corners: dict[str, NDArray[np.float64]]) -> dict[str, list[Fit]]
             for cam, c in corners.items()}
 
 
-def _cover_height(lines: dict[str, list[Fit]], P: NDArray[np.float64], use: Sequence[bool],
+def _cover_height(lines: dict[str, list[Fit]], P: NDArray[np.float64],
+                  use: Sequence[bool] | NDArray[np.bool_],
                   Q: dict[str, NDArray[np.float64]], desk_plane: NDArray[np.float64],
                   max_sigma: float) -> float | None:
     """The median height above the desk (metres) of the sides ``use`` of cover ``P``
@@ -981,8 +985,9 @@ class CompleteConfig:
     per fit). Where no height is measured (two opposite sides along the epipolar lines),
     heights from the desk up to ``max_height`` are tried every ``height_step``, then every
     quarter of that within half a step of the best; no height is taken where one more than
-    ``sweep_window`` from the best scores within ``sweep_margin`` of it (a flat sweep: the
-    unseen sides find steps at any height).
+    ``sweep_window`` from the best scores within ``sweep_margin`` of it (a fraction of the
+    best score; 0 turns the test off): a flat sweep, the unseen sides finding steps at any
+    height.
 
     ``at_ends`` (beyond the paper): an unseen side no offset of which within ``search`` is
     a step in both images at once (a cover of the desk's tone, its far sides against the
@@ -1126,7 +1131,7 @@ def complete_open(corners: dict[str, NDArray[np.float64]], seen: dict[str, NDArr
         placed = _place(h, corners, fits, Q, grads, strength, desk_plane, cfg, side_range)
         return None if placed is None else placed[0]
 
-    scored: list[tuple[float, float]] = []  # (height, score) of the coarse sweep
+    scored: list[tuple[float, float]] = []  # (height, score) of each height swept
 
     def sweep(heights: NDArray[np.float64], step: float,
               ) -> tuple[float, float, NDArray[np.float64]] | None:
@@ -1143,11 +1148,13 @@ def complete_open(corners: dict[str, NDArray[np.float64]], seen: dict[str, NDArr
     coarse = sweep(np.arange(lo, hi + 1e-9, cfg.height_step), 2 * cfg.step)  # every other offset
     if coarse is None:
         return None
-    # a height well away from the best that scores about as well: the unseen sides find
-    # steps whatever the height (a plain cover beside another book's edges: build/t2 scene
-    # 49's 13 mm book scored 13.2 at the desk, 13.7 at 48 mm, and came out 33 mm high)
-    if any(abs(h - coarse[1]) > cfg.sweep_window and score >= (1.0 - cfg.sweep_margin) * coarse[0]
-           for h, score in scored):
+    # a height well away from the best that scores about as well (so far only the coarse
+    # sweep's): the unseen sides find steps whatever the height (a plain cover beside
+    # another book's edges: build/t2 scene 49's 13 mm book scored 13.2 at the desk and 13.7
+    # at 48 mm, and came out 46 mm high)
+    if cfg.sweep_margin > 0 and any(
+            abs(h - coarse[1]) > cfg.sweep_window
+            and score >= (1.0 - cfg.sweep_margin) * coarse[0] for h, score in scored):
         return None
     fine = sweep(coarse[1] + cfg.height_step / 4 * np.arange(-2.0, 2.5), cfg.step)
     return None if fine is None or fine[1] < height_range[0] else fine[2]

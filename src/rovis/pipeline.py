@@ -1179,8 +1179,9 @@ class Detector:
         # Last, the pairs with every side seen that refined to no flat cover: far from the
         # camera a pixel of disparity is 2 cm, and the corners come out 1-3 cm apart in
         # height (build/t1b scene 23's 13 mm book, 1.3 m away: 4-14 mm). Each is refit as
-        # one rectangle parallel to the desk (as _flat_refit; a least-squares fit and the
-        # pose checks, so at most stereo.pool_flat_refits of them, of those still free).
+        # one rectangle parallel to the desk (_flat_refit, a side on its page block's foot
+        # in one image moved first; a least-squares fit and the pose checks, so at most
+        # stereo.pool_flat_refits of them, of those still free).
         # After the completions: a refit pair may be a cover in one image and its outline
         # in the other, made flat too high.
         tries = cfg.stereo.pool_flat_refits if cfg.flat_refit_px > 0 else 0
@@ -1889,13 +1890,16 @@ class Detector:
     def _flat_refit(self, rig: StereoRig, pair: Pair, desk_plane: NDArray[np.float64],
                     texture: dict[str, NDArray[np.float32]] | None,
                     ) -> tuple[Pair, BookDetection, str] | None:
-        """The pair as one rectangle parallel to the desk (:meth:`_flat_fit`), or None.
+        """The pair as one rectangle parallel to the desk (:meth:`_flat_fit`), or None
+        (for a pair that came out tilted or with a side on the desk, and the candidate
+        pool's pairs, ``stereo.pool_flat_refits``).
 
         First, where one image saw a side on its page block's foot and the other on the
         cover's edge (a side end-on to the baseline: the tilt is that side's disparity),
         that image's side is moved to the cover's height the other sides give
         (:func:`rovis.extent.settle_block_sides`; ``facing.block_sides``), and the moved
-        pair fitted flat, or as it is; where that makes no book, the pair as it came."""
+        pair fitted flat, or else reconstructed as it is (one free rectangle); where
+        neither makes a book, the pair as it came is fitted flat."""
         if self.cfg.facing.block_sides:
             settled = settle_block_sides({"left": pair.left, "right": pair.right},
                                          {"left": rig.Q_L, "right": rig.Q_R}, desk_plane,
