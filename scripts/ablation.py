@@ -44,6 +44,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("a printed frame grown to the cover's edges", ["extent.frame=false"]),
     ("the split of touching books", ["split.enabled=false"]),
     ("the join of a cover's halves", ["split.join=false"]),
+    ("a cover over a segmented one dropped", ["stereo.over_segmented=0"]),
     ("the trim by the height map", ["trim.enabled=false"]),
     ("the height check by the height map", ["trim.map_height=false"]),
     ("the grow by the height map", ["trim.grow=false"]),

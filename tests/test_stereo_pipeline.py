@@ -422,6 +422,52 @@ def _table2_scene(i: int):
     return sc, render(sc, np.random.default_rng([1, 9, i]))
 
 
+def _false_books(res, truth):
+    """The detections whose centre lies 5 cm or more from every true book's."""
+    centres = np.array([b["center"][:2] for b in truth["books"]])
+    return [o for o in res.objects
+            if np.linalg.norm(centres - o.pose.center[:2], axis=1).min() > 0.05]
+
+
+def test_a_cover_over_a_segmented_one_is_dropped():
+    # build/t2 scene 56: the candidate pool made a false 294 x 141 mm "book" over a
+    # quarter of a book both segmentations found; dropped, and reported so
+    sc, r = _table2_scene(56)
+    res = Detector(sc.rig).detect(r.left, r.right)
+    assert _false_books(res, r.truth) == []
+    assert any(why == "overlaps" for why, _, _ in res.dropped)
+    assert any("over a cover the segmentations found" in w for w in res.warnings)
+    off = Detector(sc.rig, with_settings(DetectConfig(), ["stereo.over_segmented=0"]))
+    res = off.detect(r.left, r.right)
+    assert len(_false_books(res, r.truth)) == 1
+    assert not any(why == "overlaps" for why, _, _ in res.dropped)
+
+
+def test_only_covers_over_a_segmented_one_give_way():
+    # unit: a pool cover over a segmented one by 25 % of its area gives way; one over
+    # it by 10 %, or over a cover the pool found, or a segmented cover itself, stays
+    det = Detector(sample_scene(11, lux=500.0).rig)
+    square = np.array([[0.0, 0.0], [100.0, 0.0], [100.0, 100.0], [0.0, 100.0]])
+
+    def found(source, dx, three_sided=False):
+        q = square + [dx, 0.0]
+        book = type("Book", (), {"source": source})()
+        return Pair(q, q - [60.0, 0.0], 1.0, 0.0, source=source, three_sided=three_sided), book
+
+    seg = found("segmentation", 0.0)
+    kept, over = det._without_overlaps([seg, found("candidates", 75.0),
+                                        found("candidates", 90.0)])
+    assert [p.left[0, 0] for p, _ in kept] == [0.0, 90.0]
+    assert [why for why, _, _ in over] == ["overlaps"]
+    # over a pool cover, or over a segmented one with a side unseen: no one gives way
+    for base in (found("candidates", 0.0), found("segmentation", 0.0, three_sided=True)):
+        kept, over = det._without_overlaps([base, found("height map", 75.0)])
+        assert len(kept) == 2 and over == []
+    # whatever the order, the segmented cover is the one kept
+    kept, _ = det._without_overlaps([found("candidates", 0.0), seg])
+    assert [book.source for _, book in kept] == ["segmentation"]
+
+
 def test_a_cover_tilted_by_one_images_cover_edge_step_is_refit_without_it():
     # Table II's scene 38 (rovis synth --protocol table2 --seed 1): a light cover on a
     # white page-block strip ~1 px wide. One image's inward search for the cover edge

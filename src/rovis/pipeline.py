@@ -66,9 +66,10 @@ from rovis.undistort import IdealView
 # it; a side lies on the desk; its print matches between the images at another height
 # than its corners (rovis.sweep); without the desk plane, a cover found in one image only
 # whose corners make no rectangle in 3D (with it, one with no corner near a right angle:
-# Detector._unskewed), or a rectangle inside a larger cover, in its plane (a print on it).
+# Detector._unskewed), or a rectangle inside a larger cover, in its plane (a print on it);
+# last, a cover over one both segmentations found (Detector._without_overlaps).
 DROP_REASONS = ("degenerate", "too long", "too small", "tilted", "height", "side on desk",
-                "texture height", "skewed", "printed")
+                "texture height", "skewed", "printed", "overlaps")
 # A frame's pool candidates refined (Detector._from_pool): (camera, index into the pool,
 # open pool and small pool concatenated, the late pool after them in the late pass) →
 # corners with and without the inward search, (4, 2) each, and each side's fit
@@ -532,6 +533,13 @@ class Detector:
         if self.cfg.split.join and desk_plane is not None:
             found = self._joined(rig, found, desk_plane, texture)
             lap("join")
+        # beyond the paper: a cover another pass found over one both segmentations found
+        if self.cfg.stereo.over_segmented > 0:
+            found, over = self._without_overlaps(found)
+            if over:
+                dropped += over
+                warnings.append(f"{len(over)} cover(s) over a cover the segmentations found "
+                                "dropped")
         # last, since the extent step may grow a piece of a cover to the whole cover
         found, small = self._without_small(found)
         if small:
@@ -2105,6 +2113,33 @@ class Detector:
                     break
             (printed if on else kept).append((pair, book))
         return kept, printed
+
+    def _without_overlaps(self, found: list[tuple[Pair, BookDetection]],
+                          ) -> tuple[list[tuple[Pair, BookDetection]],
+                                     list[tuple[str, NDArray[np.float64], NDArray[np.float64]]]]:
+        """The books, less each found otherwise than by both segmentations that overlaps
+        one they found (every side a line in both images) by more than
+        ``stereo.over_segmented`` of the smaller quad in both images; those as dropped
+        pairs (``"overlaps"``, left corners, right corners).
+
+        Two covers overlap in both images only where one lies over or in front of the
+        other, and then by the strip the nearer one hides; a segmented cover is the better
+        evidence (as in :meth:`_fit_extents`). On build/t2's scenes 56 and 58 a false
+        "book" (294 × 141 and 131 × 164 mm), over a quarter of it over a book the
+        segmentations found, came from the candidate pool; the touching books found on the
+        dev sets overlap by at most 12 % in one image."""
+        limit = self.cfg.stereo.over_segmented
+        segmented = [pair for pair, book in found
+                     if book.source == "segmentation" and not pair.three_sided]
+        kept, over = [], []
+        for pair, book in found:
+            if not (book.source == "segmentation" and not pair.three_sided) and any(
+                    quad_overlap(pair.left, s.left) > limit
+                    and quad_overlap(pair.right, s.right) > limit for s in segmented):
+                over.append(("overlaps", pair.left, pair.right))
+            else:
+                kept.append((pair, book))
+        return kept, over
 
     def _without_small(self, found: list[tuple[Pair, BookDetection]],
                        ) -> tuple[list[tuple[Pair, BookDetection]],

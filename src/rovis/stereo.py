@@ -56,6 +56,10 @@ class StereoConfig:
     max_refine_px: float = 4.0  # refined corners this close to the predicted ones (the source
     # quad may be a few pixels off: a side on its page block, or stopped short)
     transfer_max_overlap: float = 0.3  # of the smaller quad, with one already used
+    # A cover found otherwise than by both segmentations (every side seen) is dropped, last,
+    # where it overlaps one they found by more than this share of the smaller quad in both
+    # images (0: never; Detector._without_overlaps)
+    over_segmented: float = 0.15
     # Without the desk plane the search fixes less (the plane comes from the quad itself,
     # the depth from 0.2 to 5 m): only a quad its own image backs this well (mean edge
     # support of its sides) is looked for. On the real pairs the chess sheet's quads had
