@@ -444,20 +444,23 @@ def test_a_cover_over_a_segmented_one_is_dropped():
 
 
 def test_only_covers_over_a_segmented_one_give_way():
-    # unit: a pool cover over a segmented one by 25 % of its area gives way; one over
-    # it by 10 %, or over a cover the pool found, or a segmented cover itself, stays
+    # unit: a pool cover over a segmented one by 25 % of its area in both images gives
+    # way; one over it by 10 %, or by 25 % in one image only, or over a cover the pool
+    # found, or a segmented cover itself, stays
     det = Detector(sample_scene(11, lux=500.0).rig)
     square = np.array([[0.0, 0.0], [100.0, 0.0], [100.0, 100.0], [0.0, 100.0]])
 
-    def found(source, dx, three_sided=False):
+    def found(source, dx, three_sided=False, dx_right=None):
         q = square + [dx, 0.0]
+        r = square + [dx if dx_right is None else dx_right, 0.0] - [60.0, 0.0]
         book = type("Book", (), {"source": source})()
-        return Pair(q, q - [60.0, 0.0], 1.0, 0.0, source=source, three_sided=three_sided), book
+        return Pair(q, r, 1.0, 0.0, source=source, three_sided=three_sided), book
 
     seg = found("segmentation", 0.0)
     kept, over = det._without_overlaps([seg, found("candidates", 75.0),
-                                        found("candidates", 90.0)])
-    assert [p.left[0, 0] for p, _ in kept] == [0.0, 90.0]
+                                        found("candidates", 90.0),
+                                        found("candidates", 75.0, dx_right=95.0)])
+    assert [p.left[0, 0] for p, _ in kept] == [0.0, 90.0, 75.0]
     assert [why for why, _, _ in over] == ["overlaps"]
     # over a pool cover, or over a segmented one with a side unseen: no one gives way
     for base in (found("candidates", 0.0), found("segmentation", 0.0, three_sided=True)):
