@@ -430,8 +430,8 @@ def _false_books(res, truth):
 
 
 def test_a_cover_over_a_segmented_one_is_dropped():
-    # build/t2 scene 56: the candidate pool made a false 294 x 141 mm "book" over a
-    # quarter of a book both segmentations found; dropped, and reported so
+    # build/t2 scene 56: the candidate pool made a false 294 x 141 mm "book" over a book
+    # both segmentations found (22 % of the smaller quad); dropped, and reported so
     sc, r = _table2_scene(56)
     res = Detector(sc.rig).detect(r.left, r.right)
     assert _false_books(res, r.truth) == []
