@@ -791,9 +791,6 @@ def settle_facing_sides(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
     if h_ref is None:
         return None
 
-    def across(fit: Fit, cam: str, m: NDArray[np.float64], n: NDArray[np.float64]) -> float:
-        return _across(fit, Q[cam], m, n)
-
     moved = False
     for s in range(4):
         if not facing[s]:
@@ -820,7 +817,7 @@ def settle_facing_sides(corners: dict[str, NDArray[np.float64]], Q: dict[str, ND
             for j, (o_r, fit_r) in enumerate(options["right"]):
                 if (i == 0) == (j == 0):
                     continue
-                gap = abs(across(fit_l, "left", m, n) - across(fit_r, "right", m, n))
+                gap = abs(_across(fit_l, Q["left"], m, n) - _across(fit_r, Q["right"], m, n))
                 if gap <= cfg.tol and (o_l + o_r, gap) < best_key:
                     best, best_key = (fit_l, fit_r), (o_l + o_r, gap)
         if best is not None:

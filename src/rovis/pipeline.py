@@ -1776,12 +1776,9 @@ class Detector:
         # line, and the segmented cover has the better evidence.
         limit = self.cfg.stereo.transfer_max_overlap
 
-        def segmented(k: int) -> bool:  # both images' segmentations, every side seen
-            return out[k][1].source == "segmentation" and not out[k][0].three_sided
-
         for i in list(moved):
-            if not segmented(i) and any(
-                    k != i and k not in moved and segmented(k)
+            if not _segmented(*out[i]) and any(
+                    k != i and k not in moved and _segmented(*out[k])
                     and quad_overlap(out[i][0].left, out[k][0].left) > limit
                     for k in range(len(out))):
                 out[i] = before[i]
@@ -2130,11 +2127,10 @@ class Detector:
         segmentations found by 22 and 30 % of the smaller quad; the touching books found
         on the dev sets overlap by at most 12 % in one image."""
         limit = self.cfg.stereo.over_segmented
-        segmented = [pair for pair, book in found
-                     if book.source == "segmentation" and not pair.three_sided]
+        segmented = [pair for pair, book in found if _segmented(pair, book)]
         kept, over = [], []
         for pair, book in found:
-            if not (book.source == "segmentation" and not pair.three_sided) and any(
+            if not _segmented(pair, book) and any(
                     quad_overlap(pair.left, s.left) > limit
                     and quad_overlap(pair.right, s.right) > limit for s in segmented):
                 over.append(("overlaps", pair.left, pair.right))
@@ -2270,6 +2266,13 @@ class Detector:
             reprojection_error_px=float(reproj.mean()),
             quality=pair.quality, stereo_error_px=pair.error_px,
             source="one image" if pair.transferred else pair.source), ""
+
+
+def _segmented(pair: Pair, book: BookDetection) -> bool:
+    """Whether a found book is a cover both images' segmentations found, every side seen
+    (the better evidence where covers disagree: :meth:`Detector._fit_extents`,
+    :meth:`Detector._without_overlaps`)."""
+    return book.source == "segmentation" and not pair.three_sided
 
 
 def _in_eq1_order(pair: Pair) -> Pair:
