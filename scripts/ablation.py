@@ -36,6 +36,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the height map", ["heightmap.enabled=false"]),
     ("the smooth height map (covers without print)", ["heightmap.smooth=false"]),
     ("one image's candidate looked for in the other", ["stereo.pool_transfer=false"]),
+    ("small candidates with sides unseen, paired last", ["segment.small_open=false"]),
     ("the facing sides' edge", ["facing.enabled=false"]),
     ("a side on its block's foot in one image", ["facing.block_sides=false"]),
     ("a side on its foot, lifted", ["lift_foot=false"]),

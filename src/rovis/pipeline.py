@@ -303,6 +303,9 @@ class Pair:
     # ("height map"); "one image" comes from ``transferred``
     source: str = "segmentation"
     three_sided: bool = False  # a segmented cover with its fourth side unseen (either image)
+    # from a small candidate with sides unseen (SegmentConfig.small_open): kept only if no
+    # side of the final book is under StereoConfig.small_open_min_side
+    small_open: bool = False
 
 
 
@@ -466,6 +469,13 @@ class Detector:
             # beyond the paper: one image's candidates looked for in the other, last
             found += self._from_pool_one_image(rig, segs, grads, ideal, found, desk_plane,
                                                texture, refined)
+            lap("stereo")
+        if self.cfg.stereo.pool and desk_plane is not None and any(
+                np.any(seg.small_pool.lines < 0) for seg in segs.values()):
+            # beyond the paper: the small candidates with sides unseen
+            # (SegmentConfig.small_open), last: where nothing else found a book
+            found += self._from_pool(rig, segs, grads, found, desk_plane, texture, refined,
+                                     extra="small_open")
             lap("stereo")
         # a failed pair whose quad became a book through the one-image search is not lost
         # (a print lies inside the cover it was dropped for: it is always reported)
@@ -866,7 +876,7 @@ class Detector:
                    desk_plane: NDArray[np.float64],
                    texture: dict[str, NDArray[np.float32]] | None,
                    refined: Refined | None = None, *,
-                   extra: Literal["late", "small"] | None = None,
+                   extra: Literal["late", "small", "small_open"] | None = None,
                    ) -> list[tuple[Pair, BookDetection]]:
         """Books from the two images' candidate pools (:attr:`Segmentation.pool`, then
         :attr:`Segmentation.open_pool`) where no book is yet; with ``extra``, only the pairs
@@ -899,28 +909,32 @@ class Detector:
         # the full candidates and those with one side unseen (Segmentation.open_pool),
         # then the small and the late pool: a refined quad is cached by its index in this
         # order, the same in every pass
-        late = extra == "late"
+        late = extra in ("late", "small_open")
         parts = {cam: [segs[cam].pool, segs[cam].open_pool, segs[cam].small_pool]
                  + ([segs[cam].late_pool] if late else []) for cam in ("left", "right")}
         pool = {cam: Quads.concat(parts[cam]) for cam in parts}
-        # the pass's own quads from `early` on; the small ones are no partner in the late
-        early = {cam: sum(len(q) for q in parts[cam][:3 if late else 2]) for cam in pool}
-        skip = {cam: range(early[cam] - len(segs[cam].small_pool), early[cam]) if late
-                else range(early[cam], len(pool[cam])) if extra is None else range(0)
-                for cam in pool}
+        # each quad's kind: 0 the full and open pools, 1 a small one with every side seen,
+        # 2 a small one with sides unseen (SegmentConfig.small_open), 3 the late pool; the
+        # kinds a pass may pair, and those each of its pairs must have one of
+        kind = {cam: np.concatenate([
+            np.zeros(len(parts[cam][0]) + len(parts[cam][1]), np.intp),
+            np.where((parts[cam][2].lines < 0).any(axis=1), 2, 1) if len(parts[cam][2])
+            else np.zeros(0, np.intp),
+            np.full(len(pool[cam]) - sum(len(q) for q in parts[cam][:3]), 3, np.intp)])
+            for cam in pool}
+        usable, own = {None: ((0,), (0,)), "small": ((0, 1), (1,)), "late": ((0, 3), (3,)),
+                       "small_open": ((0, 1, 2, 3), (2,))}[extra]
         taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
         over = {cam: _over_any(pool[cam].corners, taken[cam], overlap) for cam in pool}
-        index = {cam: np.array([k for k in range(len(pool[cam]))
-                                if k not in skip[cam] and not over[cam][k]], dtype=np.intp)
-                 for cam in pool}
+        index = {cam: np.flatnonzero(np.isin(kind[cam], usable) & ~over[cam]) for cam in pool}
         pp = pool_pairs(pool["left"].corners[index["left"]], pool["right"].corners[index["right"]],
                         rig.Q_L, rig.Q_R, desk_plane=desk_plane,
                         side_range=(0.8 * cfg.min_cover_side, 1.1 * cfg.max_cover_side),
                         cfg=cfg.stereo, seen_left=pool["left"].lines[index["left"]] >= 0,
                         seen_right=pool["right"].lines[index["right"]] >= 0)
         if extra and len(pp):  # the pairs of the other pools were tried before
-            pp = pp.take(np.flatnonzero((index["left"][pp.left] >= early["left"])
-                                        | (index["right"][pp.right] >= early["right"])))
+            pp = pp.take(np.flatnonzero(np.isin(kind["left"][index["left"][pp.left]], own)
+                                        | np.isin(kind["right"][index["right"][pp.right]], own)))
         if len(pp) == 0:
             return []
         i, j = index["left"][pp.left], index["right"][pp.right]
@@ -964,7 +978,8 @@ class Detector:
             return []
         # on busy texture (thousands of pairs of candidates) only those closest to their
         # epipolar segments are refined, which bounds the time
-        most = cfg.stereo.small_max_pairs if extra == "small" else cfg.stereo.pool_max_pairs
+        most = (cfg.stereo.small_max_pairs if extra in ("small", "small_open")
+                else cfg.stereo.pool_max_pairs)
         order = np.sort(np.argsort(pp.error_px, kind="stable")[:most])
         i, j, pp = i[order], j[order], pp.take(order)
         cache: Refined = {} if refined is None else refined
@@ -1162,11 +1177,13 @@ class Detector:
                                 pool["right"].support[j[a]].mean()))
             pair, book, _ = self._reconstruct_or_why(  # eq. 1 order, kept after refinement
                 rig, _in_eq1_order(Pair(left[a], right[a], quality, float(pp.error_px[a]),
-                                        source="candidates")),
+                                        source="candidates", small_open=extra == "small_open")),
                 desk_plane, texture)
             if book is None or (late and book.reprojection_error_px
                                 > cfg.stereo.late_max_reprojection_px):
                 return
+            if extra == "small_open" and between_books(book.corners_world):
+                return  # desk between books: its sides theirs
             taken["left"].append(pair.left)
             taken["right"].append(pair.right)
             out.append((pair, book))
@@ -2141,11 +2158,14 @@ class Detector:
     def _without_small(self, found: list[tuple[Pair, BookDetection]],
                        ) -> tuple[list[tuple[Pair, BookDetection]],
                                   list[tuple[str, NDArray[np.float64], NDArray[np.float64]]]]:
-        """The books with no side shorter than ``min_cover_side``, and the others as dropped
-        pairs (``"too small"``, left corners, right corners)."""
+        """The books with no side shorter than ``min_cover_side`` (``stereo.small_open_min_side``
+        for one from a small candidate with sides unseen), and the others as dropped pairs
+        (``"too small"``, left corners, right corners)."""
         kept, small = [], []
         for pair, book in found:
-            if min(book.pose.size[0], book.pose.size[1]) < self.cfg.min_cover_side:
+            least = (max(self.cfg.min_cover_side, self.cfg.stereo.small_open_min_side)
+                     if pair.small_open else self.cfg.min_cover_side)
+            if min(book.pose.size[0], book.pose.size[1]) < least:
                 small.append(("too small", pair.left, pair.right))
             else:
                 kept.append((pair, book))

@@ -115,6 +115,12 @@ class StereoConfig:
     # block's foot in the other makes a flat cover at the wrong height, 3 px off; a pair
     # completed in 3D or moved by its print is its 3D cover's projection, 0 px off)
     late_max_reprojection_px: float = 1.0
+    # Last of all, a pair with a small candidate with sides unseen (SegmentConfig.small_open),
+    # as the late pool's pairs (late_max_reprojection_px too); the book must not be the desk
+    # between books found (two sides on theirs) and each side at least this long (metres:
+    # the scene model's narrowest book is 9 cm; a cover cut short by a band of its print,
+    # or a strip of desk, is narrower)
+    small_open_min_side: float = 0.075
 
 
 @dataclass(frozen=True, eq=False)

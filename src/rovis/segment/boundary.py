@@ -75,6 +75,12 @@ class SegmentConfig:
         (:attr:`Segmentation.small_pool`), never covers of one image: a small book at the
         far side of the workspace, among more printed blocks and papers (measured:
         docs/segmentation.md, "The smallest cover"). At ``quads.min_area_px`` or above: none.
+    small_open : bool
+        Beyond the paper: with ``three_sided`` (and ``two_sided``), the candidates with sides
+        unseen of ``pool_min_area_px`` up to ``quads.min_area_px`` join
+        :attr:`Segmentation.small_pool` too: a small plain book at the far side of the
+        workspace shows its near sides (the page block's) and little of the far ones
+        (measured: docs/stereo.md, "Small covers with sides unseen").
     refine_gamma : float
         Beyond the paper, off by default (1: refine on the image as it is): the camera's
         gamma, undone for the sub-pixel refinement of the covers' sides
@@ -138,6 +144,7 @@ class SegmentConfig:
     pool_min_support: float = 0.7
     refine_lines: bool = True
     pool_min_area_px: float = 2500.0
+    small_open: bool = True
     three_sided: bool = True
     three_sided_evaluations: int = 3
     three_sided_support: float = 0.95
@@ -412,10 +419,25 @@ def open_candidates(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
         return Quads.empty()
     clock = time.perf_counter()
     area = roi_area(grad) if area is None else area
-    quads = three_sided_quads(ev.all_lines, ev.profile, grad.shape, area, cfg.quads,
+    quads = three_sided_quads(ev.all_lines, ev.profile, grad.shape, area, _open_quads(cfg),
                               graph=ev.graph)
     _lap(timing, "three_sided", clock)
     return quads
+
+
+def _open_quads(cfg: SegmentConfig) -> QuadConfig:
+    """The quad rules for the candidates with sides unseen: with ``cfg.small_open``, down
+    to ``cfg.pool_min_area_px`` (:func:`split_small` parts them from the covers' size)."""
+    if not cfg.small_open:
+        return cfg.quads
+    return replace(cfg.quads, min_area_px=min(cfg.quads.min_area_px, cfg.pool_min_area_px))
+
+
+def split_small(quads: Quads, cfg: SegmentConfig) -> tuple[Quads, Quads]:
+    """``quads`` parted into those of a cover's area (``cfg.quads.min_area_px`` or more,
+    pixels²) and the smaller ones."""
+    big = np.abs(_shoelace(quads.corners)) >= cfg.quads.min_area_px
+    return quads.take(big), quads.take(~big)
 
 
 def two_sided_candidates(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
@@ -431,10 +453,11 @@ def two_sided_candidates(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
     area = roi_area(grad) if area is None else area
     graph = ev.graph if ev.graph is not None else _corner_graph(  # for both
         ev.all_lines, ev.profile, grad.shape, cfg.quads)
-    quads = two_sided_quads(ev.all_lines, ev.profile, grad.shape, area, cfg.quads, graph=graph)
+    qc = _open_quads(cfg)
+    quads = two_sided_quads(ev.all_lines, ev.profile, grad.shape, area, qc, graph=graph)
     if cfg.opposite_sided:
         quads = Quads.concat([quads, opposite_sided_quads(ev.all_lines, ev.profile, grad.shape,
-                                                          area, cfg.quads, graph=graph)])
+                                                          area, qc, graph=graph)])
     _lap(timing, "two_sided", clock)
     return quads
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from rovis.segment.boundary import (Evaluation, SegmentConfig, Segmentation, candidate_pool,
                                    evaluate, finish, open_candidates, roi_area,
-                                   two_sided_candidates, without_near)
+                                   split_small, two_sided_candidates, without_near)
 from rovis.segment.edges import Gradients
 from rovis.segment.quads import Quads, order_corners, quad_overlap
 
@@ -111,6 +111,7 @@ class CascadeController:
                 pool.append(candidate_pool([wide.selection.quads], self.cfg.pool_size))
         full = candidate_pool(pool, self.cfg.pool_size)
         open_pool = late_pool = None
+        small_open: list[Quads] = []  # (SegmentConfig.small_open) after the four-sided ones
         if self.cfg.three_sided:
             # beyond the paper: covers with one side unseen, at the T_H whose covers were
             # kept and the best few others
@@ -119,13 +120,15 @@ class CascadeController:
             if not ranked:  # no cover at any T_H (y = 0): each evaluation may hold one
                 chosen += list(seen.values())
             best, alternatives, open_pool = with_open_candidates(
-                grad, best, alternatives, chosen, full, self.cfg, area=area, timing=timing)
+                grad, best, alternatives, chosen, full, self.cfg, area=area, timing=timing,
+                smalls=small_open)
             if self.cfg.late_open:
                 rest = [e for e in seen.values() if e.y > 0
                         and all(e.profile is not c.profile for c in chosen)]
                 late_pool = unseen_candidates(grad, rest, Quads.concat([full, open_pool]),
-                                              self.cfg, area=area, timing=timing)
-        small_pool = candidate_pool(smalls, self.cfg.pool_size) if smalls else None
+                                              self.cfg, area=area, timing=timing,
+                                              smalls=small_open)
+        small_pool = small_candidates(smalls, small_open, self.cfg)
         return finish(grad, best, iterations, timing=timing, alternatives=alternatives,
                       pool=full, refine=refine, open_pool=open_pool, late_pool=late_pool,
                       small_pool=small_pool)
@@ -239,41 +242,70 @@ def with_three_sided_covers(best: Evaluation, alternatives: tuple[np.ndarray, ..
 def with_open_candidates(grad: Gradients, best: Evaluation, alternatives: tuple[np.ndarray, ...],
                          chosen: Sequence[Evaluation], full: Quads, cfg: SegmentConfig, *,
                          area: float, timing: dict[str, float] | None = None,
+                         smalls: list[Quads] | None = None,
                          ) -> tuple[Evaluation, tuple[np.ndarray, ...], Quads]:
     """The candidates with sides unseen of the ``chosen`` evaluations (beyond the paper):
     ``best`` with the clearly seen three-sided ones kept as covers
     (:func:`with_three_sided_covers`, ``cfg.three_sided_support``), its ``alternatives``,
     and :attr:`Segmentation.open_pool` (three-sided, then with ``cfg.two_sided`` two-sided
-    candidates, for stereo only), less those ``full`` (the four-sided pool) already holds.
+    candidates, for stereo only), less those ``full`` (the four-sided pool) already holds;
+    with ``cfg.small_open``, those smaller than a cover are appended to ``smalls``.
     The closed loop asks it of the T_H it kept and the best few others; a method with one
     evaluation, of that one."""
     # one evaluation may appear as itself and as a copy with more covers
     # (with_other_covers): the same lines and edge hits, asked once
     chosen = [e for k, e in enumerate(chosen)
               if all(e.profile is not c.profile for c in chosen[:k])]
-    open_pool = unseen_candidates(grad, chosen, full, cfg, area=area, timing=timing)
+    open_pool = unseen_candidates(grad, chosen, full, cfg, area=area, timing=timing,
+                                  smalls=smalls)
     if cfg.three_sided_support <= 1.0:  # (a two-sided candidate has two sides unseen)
         best, alternatives = with_three_sided_covers(
             best, alternatives, open_pool, cfg.three_sided_support, cfg.quads.max_overlap)
     return best, alternatives, open_pool
 
 
+def small_candidates(four_sided: list[Quads], unseen: list[Quads],
+                     cfg: SegmentConfig) -> Quads | None:
+    """:attr:`Segmentation.small_pool`: the four-sided candidates smaller than a cover, then
+    those with sides unseen (``cfg.small_open``) that are not near one of them, each the most
+    edge pixels first (at most ``cfg.pool_size``, ``cfg.two_sided_size`` of the latter)."""
+    full = candidate_pool(four_sided, cfg.pool_size) if four_sided else None
+    if not unseen:
+        return full
+    rest = candidate_pool(unseen, cfg.two_sided_size)
+    if full is None:
+        return rest
+    return Quads.concat([full, without_near(rest, full, cfg.quads.duplicate_px)])
+
+
 def unseen_candidates(grad: Gradients, evaluations: Sequence[Evaluation], near: Quads,
                       cfg: SegmentConfig, *, area: float,
-                      timing: dict[str, float] | None = None) -> Quads:
+                      timing: dict[str, float] | None = None,
+                      smalls: list[Quads] | None = None) -> Quads:
     """The candidates with sides unseen (three-sided, then with ``cfg.two_sided`` two-sided)
     of ``evaluations``, less those ``near`` holds (beyond the paper):
     :attr:`Segmentation.open_pool` of the evaluations :func:`with_open_candidates` is asked
     of, and :attr:`Segmentation.late_pool` (``cfg.late_open``) of the closed loop's other
-    T_H with covers."""
+    T_H with covers. With ``cfg.small_open``, those smaller than a cover are appended to
+    ``smalls`` instead (for :attr:`Segmentation.small_pool`)."""
     if not evaluations:
         return Quads.empty()
+
+    def parted(quads: list[Quads]) -> list[Quads]:  # the cover-sized ones; the rest to smalls
+        if not cfg.small_open:
+            return quads
+        parts = [split_small(q, cfg) for q in quads]
+        if smalls is not None:
+            smalls.extend(small for _, small in parts if len(small))
+        return [big for big, _ in parts]
+
     late = without_near(candidate_pool(
-        [open_candidates(grad, e, cfg, area=area, timing=timing) for e in evaluations],
+        parted([open_candidates(grad, e, cfg, area=area, timing=timing) for e in evaluations]),
         cfg.pool_size), near, cfg.quads.duplicate_px)
     if cfg.two_sided:
         two = without_near(candidate_pool(
-            [two_sided_candidates(grad, e, cfg, area=area, timing=timing) for e in evaluations],
+            parted([two_sided_candidates(grad, e, cfg, area=area, timing=timing)
+                    for e in evaluations]),
             cfg.two_sided_size), Quads.concat([near, late]), cfg.quads.duplicate_px)
         late = Quads.concat([late, two])
     return late

@@ -24,7 +24,8 @@ from numpy.typing import NDArray
 
 from rovis.segment.boundary import (Evaluation, SegmentConfig, Segmentation, candidate_pool,
                                     evaluate, finish, roi_area)
-from rovis.segment.control import CascadeController, with_open_candidates
+from rovis.segment.control import (CascadeController, small_candidates,
+                                   with_open_candidates)
 from rovis.segment.edges import Gradients, canny, linear_gradients
 from rovis.segment.lines import Lines, suppress_duplicates, support_profile
 from rovis.segment.quads import CoverSelection, Quads, candidate_quads
@@ -107,13 +108,15 @@ def _finish_one(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
     full = candidate_pool([ev.selection.quads] if ev.selection is not None else [],
                           cfg.pool_size)
     open_pool, alternatives = None, ()
+    small_open: list[Quads] = []
     if cfg.three_sided:
         ev, alternatives, open_pool = with_open_candidates(
-            grad, ev, alternatives, [ev], full, cfg, area=roi_area(grad), timing=timing)
+            grad, ev, alternatives, [ev], full, cfg, area=roi_area(grad), timing=timing,
+            smalls=small_open)
+    four_sided = [ev.small] if ev.small is not None and len(ev.small) else []
     return finish(grad, ev, 1, timing=timing, alternatives=alternatives, pool=full,
                   refine=refine, open_pool=open_pool,
-                  small_pool=candidate_pool([ev.small] if ev.small is not None else [],
-                                            cfg.pool_size))
+                  small_pool=small_candidates(four_sided, small_open, cfg))
 
 
 _LSD = None
