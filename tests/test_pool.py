@@ -533,3 +533,37 @@ def test_a_parallelogram_with_no_right_angle_is_dropped(book):
     det.cfg = replace(det.cfg, unskew_deg=20.0)
     kept, dropped = det._unskewed(rig, segs, grads, [(pair, quad)], DESK, None)
     assert kept == [(pair, quad)] and dropped == []
+
+
+def _with_unseen(seg, sides=(2,)):
+    """``seg`` with the given sides of its small pool's candidates unseen (line -1)."""
+    lines = seg.small_pool.lines.copy()
+    lines[:, list(sides)] = -1
+    return replace(seg, small_pool=replace(seg.small_pool, lines=lines))
+
+
+def test_small_candidates_with_sides_unseen_are_paired_in_the_last_pass_only(book):
+    # Segmentation.small_pool holds the four-sided small candidates, then (with
+    # SegmentConfig.small_open) those with sides unseen: only the "small_open" pass pairs
+    # the latter, with any pool's quad as the partner, and marks its books
+    P, grads, rig = book
+    quads = _projected(rig, P)
+    det = Detector(rig, DetectConfig())
+    unseen = {cam: _with_unseen(seg) for cam, seg in _offered(quads, "small_pool").items()}
+    for extra in (None, "small", "late"):
+        assert det._from_pool(rig, unseen, grads, [], DESK, None, extra=extra) == []
+    found = det._from_pool(rig, unseen, grads, [], DESK, None, extra="small_open")
+    assert len(found) == 1 and found[0][0].small_open
+    assert np.linalg.norm(found[0][1].pose.center - P.mean(axis=0)) < 0.005  # m
+    # its partner from the late pool
+    mixed = {"left": unseen["left"],
+             "right": replace(Segmentation.empty(100.0, 30), late_pool=_pool([quads["right"]]))}
+    assert det._from_pool(rig, mixed, grads, [], DESK, None, extra="late") == []
+    found = det._from_pool(rig, mixed, grads, [], DESK, None, extra="small_open")
+    assert len(found) == 1 and found[0][0].small_open
+    # no quad of its own: the last pass pairs nothing; the small pass pairs a four-sided one
+    assert det._from_pool(rig, _offered(quads, "pool"), grads, [], DESK, None,
+                          extra="small_open") == []
+    found = det._from_pool(rig, _offered(quads, "small_pool"), grads, [], DESK, None,
+                           extra="small")
+    assert len(found) == 1 and not found[0][0].small_open

@@ -17,7 +17,7 @@ from rovis.pipeline import DetectConfig, Detector, Pair
 from rovis.segment.boundary import SegmentConfig, split_small
 from rovis.segment.control import small_candidates
 from rovis.segment.methods import segment
-from rovis.segment.quads import Quads, order_corners
+from rovis.segment.quads import QuadConfig, Quads, _distinct_apart, _shoelace, order_corners
 from rovis.synth import render
 
 
@@ -40,6 +40,18 @@ def test_split_small_parts_candidates_at_the_covers_area():
     big, small = split_small(quads, cfg)  # 6400, 5041 px²
     assert sorted(big.corners[:, 0, 0].tolist()) == [100.0, 200.0]
     assert small.corners[:, 0, 0].tolist() == [0.0]
+
+
+def test_a_smaller_near_copy_does_not_take_a_cover_sized_candidates_place():
+    # two candidates 1 px apart, one of 5041 px² and one of 4900 with an edge pixel more:
+    # merged as near-duplicates, the smaller would win; told apart by size, both stay
+    big = _quads([_square(0, 0, 71)], unseen=(2,), n_f=100.0)
+    near = _quads([_square(1, 1, 70)], unseen=(2,), n_f=101.0)
+    quads = Quads.concat([big, near])
+    apart = _distinct_apart(quads, replace(QuadConfig(), small_area_px=2500.0))
+    assert sorted(np.abs(_shoelace(apart.corners)).tolist()) == [4900.0, 5041.0]
+    merged = _distinct_apart(quads, QuadConfig())  # (without small_area_px: one)
+    assert np.abs(_shoelace(merged.corners)).tolist() == [4900.0]
 
 
 def test_small_candidates_put_the_four_sided_first_and_drop_near_duplicates():
@@ -74,24 +86,28 @@ def test_a_small_plain_cover_shows_as_a_small_candidate_with_sides_unseen():
     sc, r = _table1_scene(3, 36)
     book = r.truth["books"][1]
 
-    def nearest(cfg: DetectConfig) -> tuple[float, Quads, int]:
+    def nearest(cfg: DetectConfig) -> tuple[float, str, int, Any]:
         det = Detector(sc.rig, cfg)
         f = det._prepare(r.left, r.right)
         seg = segment(f.ideal["left"], f.grads["left"], "closed",
                       controller=det._controllers["left"], cfg=cfg.segment)
         truth = order_corners(geometry.project(f.rig.Q_L, np.asarray(book["corners"])))
-        best, where, k = np.inf, seg.small_pool, -1
-        for quads in (seg.pool, seg.open_pool, seg.late_pool, seg.small_pool):
-            for i, q in enumerate(quads.corners):
+        best, where, k = np.inf, "", -1
+        for name in ("pool", "open_pool", "late_pool", "small_pool"):
+            for i, q in enumerate(getattr(seg, name).corners):
                 err = float(np.linalg.norm(order_corners(q) - truth, axis=1).max())
                 if err < best:
-                    best, where, k = err, quads, i
-        return best, where, k
+                    best, where, k = err, name, i
+        return best, where, k, seg
 
     cfg = DetectConfig()
-    err, quads, k = nearest(cfg)
+    err, where, k, seg = nearest(cfg)
     assert err < 5.0  # px, every corner
-    assert quads is not None and np.count_nonzero(quads.lines[k] < 0) == 2
+    assert where == "small_pool" and np.count_nonzero(seg.small_pool.lines[k] < 0) == 2
+    # the open pools hold only candidates of a cover's area (QuadConfig.min_area_px)
+    for name in ("open_pool", "late_pool"):
+        quads = getattr(seg, name)
+        assert np.all(np.abs(_shoelace(quads.corners)) >= cfg.segment.quads.min_area_px)
     off = replace(cfg, segment=replace(cfg.segment, small_open=False))
     assert nearest(off)[0] > 50.0
 

@@ -50,8 +50,9 @@ from rovis.split import SplitConfig, join_halves, split_union_heights
 from rovis.track import TrackConfig, follow
 from rovis.trim import (TrimConfig, cut_cover, grow_run, height_profile, map_height, print_grow,
                         trim_side)
-from rovis.stereo import (Match, StereoConfig, _point_segment_distance, find_in_other_view,
-                          flat_rectangle, match_quads, pool_pairs, side_lengths_and_corner_cos)
+from rovis.stereo import (Match, PoolPairs, StereoConfig, _point_segment_distance,
+                          find_in_other_view, flat_rectangle, match_quads, pool_pairs,
+                          side_lengths_and_corner_cos)
 from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pass, on_plane,
                          print_goes_on, print_height, sweep_heights, texture_height)
 from rovis.undistort import IdealView
@@ -71,7 +72,8 @@ from rovis.undistort import IdealView
 DROP_REASONS = ("degenerate", "too long", "too small", "tilted", "height", "side on desk",
                 "texture height", "skewed", "printed", "overlaps")
 # A frame's pool candidates refined (Detector._from_pool): (camera, index into the pool,
-# open pool and small pool concatenated, the late pool after them in the late pass) →
+# open pool and small pool concatenated, the late pool after them in the late and the
+# small_open passes) →
 # corners with and without the inward search, (4, 2) each, and each side's fit
 # (refine_sides's, with the inward search): :func:`refine_quad_fits`.
 Refined = dict[tuple[str, int], tuple[NDArray[np.float64], NDArray[np.float64],
@@ -434,7 +436,7 @@ class Detector:
             # (without the desk plane, nothing tells a book from a flat rectangle of a
             # pattern: on the real chessboard pairs, squares of the board)
             found += self._from_pool(rig, segs, grads, found, desk_plane, texture, refined)
-            if any(len(seg.small_pool) for seg in segs.values()):
+            if any(np.all(seg.small_pool.lines >= 0, axis=1).any() for seg in segs.values()):
                 # beyond the paper: then the candidates smaller than a cover of one image
                 # (Segmentation.small_pool), in a pass of their own
                 found += self._from_pool(rig, segs, grads, found, desk_plane, texture, refined,
@@ -544,11 +546,16 @@ class Detector:
             found = self._joined(rig, found, desk_plane, texture)
             lap("join")
         # last, since the extent step may grow a piece of a cover to the whole cover
+        small_open = sum(pair.small_open for pair, _ in found)
         found, small = self._without_small(found)
         if small:
             dropped += small
+            # (a book from the small pass with sides unseen has a bound of its own)
+            small_open -= sum(pair.small_open for pair, _ in found)
+            also = (f" ({small_open} from small candidates with sides unseen, narrower than "
+                    f"{self.cfg.stereo.small_open_min_side * 100:g} cm)" if small_open else "")
             warnings.append(f"{len(small)} cover(s) narrower than {self.cfg.min_cover_side * 100:g} "
-                            "cm dropped: no book (a printed square, a label)")
+                            f"cm dropped{also}: no book (a printed square, a label)")
         # beyond the paper: a cover another pass found over one both segmentations found
         # (after the small ones go: a label the segmentations found is no evidence)
         if self.cfg.stereo.over_segmented > 0 and desk_plane is not None:
@@ -880,9 +887,14 @@ class Detector:
                    ) -> list[tuple[Pair, BookDetection]]:
         """Books from the two images' candidate pools (:attr:`Segmentation.pool`, then
         :attr:`Segmentation.open_pool`) where no book is yet; with ``extra``, only the pairs
-        with a quad of :attr:`Segmentation.small_pool` (``"small"``: the candidates smaller
-        than a cover of one image) or :attr:`Segmentation.late_pool` (``"late"``: the
-        closed loop's other T_H).
+        with a quad of :attr:`Segmentation.small_pool` with every side seen (``"small"``:
+        the candidates smaller than a cover of one image), of :attr:`Segmentation.late_pool`
+        (``"late"``: the closed loop's other T_H), or of the small pool with sides unseen
+        (``"small_open"``: ``SegmentConfig.small_open``; any other pool's quad may be the
+        partner). The late and small_open passes' books must reproject within
+        ``stereo.late_max_reprojection_px``; a small_open book must not be the desk between
+        books found (two sides on their outlines) and is marked ``Pair.small_open``
+        (:meth:`_without_small`'s own bound).
 
         The pairs of Hough quads that roughly make a flat, book-sized rectangle
         (:func:`rovis.stereo.pool_pairs`) are refined in both images (Hough corners are
@@ -927,14 +939,30 @@ class Detector:
         taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
         over = {cam: _over_any(pool[cam].corners, taken[cam], overlap) for cam in pool}
         index = {cam: np.flatnonzero(np.isin(kind[cam], usable) & ~over[cam]) for cam in pool}
-        pp = pool_pairs(pool["left"].corners[index["left"]], pool["right"].corners[index["right"]],
-                        rig.Q_L, rig.Q_R, desk_plane=desk_plane,
-                        side_range=(0.8 * cfg.min_cover_side, 1.1 * cfg.max_cover_side),
-                        cfg=cfg.stereo, seen_left=pool["left"].lines[index["left"]] >= 0,
-                        seen_right=pool["right"].lines[index["right"]] >= 0)
-        if extra and len(pp):  # the pairs of the other pools were tried before
-            pp = pp.take(np.flatnonzero(np.isin(kind["left"][index["left"][pp.left]], own)
-                                        | np.isin(kind["right"][index["right"][pp.right]], own)))
+
+        def pairs(at_left: NDArray[np.intp], at_right: NDArray[np.intp]) -> PoolPairs:
+            # pool_pairs of the quads at those positions of `index`, as positions of `index`
+            ql, qr = index["left"][at_left], index["right"][at_right]
+            got = pool_pairs(pool["left"].corners[ql], pool["right"].corners[qr],
+                             rig.Q_L, rig.Q_R, desk_plane=desk_plane,
+                             side_range=(0.8 * cfg.min_cover_side, 1.1 * cfg.max_cover_side),
+                             cfg=cfg.stereo, seen_left=pool["left"].lines[ql] >= 0,
+                             seen_right=pool["right"].lines[qr] >= 0)
+            return replace(got, left=at_left[got.left], right=at_right[got.right])
+
+        every = {cam: np.arange(len(index[cam])) for cam in index}
+        if extra is None:
+            pp = pairs(every["left"], every["right"])
+        else:
+            # only the pairs with a quad of this pass's own (the others were tried before):
+            # its own left ones with every right one, the other left ones with its own
+            # right ones, in the order one call over all would give (pool_pairs judges
+            # each pair alone)
+            mine = {cam: np.isin(kind[cam][index[cam]], own) for cam in index}
+            pp = PoolPairs.concat([pairs(every["left"][mine["left"]], every["right"]),
+                                   pairs(every["left"][~mine["left"]],
+                                         every["right"][mine["right"]])])
+            pp = pp.take(np.lexsort((pp.right, pp.left)))
         if len(pp) == 0:
             return []
         i, j = index["left"][pp.left], index["right"][pp.right]
@@ -2096,6 +2124,9 @@ class Detector:
                     transferred=first.transferred or second.transferred,
                     alternative=first.alternative or second.alternative,
                     three_sided=first.three_sided or second.three_sided,
+                    # (the joined cover is as wide as each half: the bound of
+                    # small_open_min_side only where both came from the small pass)
+                    small_open=first.small_open and second.small_open,
                     source=(first.source if first.source != "segmentation" else second.source))
                 trial, book, _ = self._reconstruct_or_why(rig, _in_eq1_order(trial), desk_plane,
                                                           texture)

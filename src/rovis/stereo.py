@@ -230,6 +230,12 @@ class PoolPairs:
         return PoolPairs(self.left[index], self.right[index], self.corners_right[index],
                          self.shift[index], self.error_px[index])
 
+    @classmethod
+    def concat(cls, parts: list[PoolPairs]) -> PoolPairs:
+        """The pairs of ``parts`` in order (their indices into the same two pools)."""
+        return cls(*(np.concatenate([getattr(p, f) for p in parts]) for f in
+                     ("left", "right", "corners_right", "shift", "error_px")))
+
 
 def pool_pairs(pool_left: ArrayLike, pool_right: ArrayLike, Q_L: ArrayLike, Q_R: ArrayLike, *,
                desk_plane: ArrayLike | None = None, side_range: tuple[float, float] = (0.05, 0.45),

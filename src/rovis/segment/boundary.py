@@ -80,7 +80,7 @@ class SegmentConfig:
         unseen of ``pool_min_area_px`` up to ``quads.min_area_px`` join
         :attr:`Segmentation.small_pool` too: a small plain book at the far side of the
         workspace shows its near sides (the page block's) and little of the far ones
-        (measured: docs/stereo.md, "Small covers with sides unseen").
+        (measured: docs/segmentation.md, "Small candidates with sides unseen").
     refine_gamma : float
         Beyond the paper, off by default (1: refine on the image as it is): the camera's
         gamma, undone for the sub-pixel refinement of the covers' sides
@@ -227,7 +227,10 @@ class Segmentation:
         Beyond the paper: the four-sided candidates of every evaluation smaller than a
         cover (``SegmentConfig.pool_min_area_px`` to ``QuadConfig.min_area_px``), the most
         edge pixels first, corners in eq. 1 order; stereo pairs them in a pass of their own
-        after the other pools (``StereoConfig.small_max_pairs`` pairs at most).
+        after the other pools (``StereoConfig.small_max_pairs`` pairs at most). With
+        ``SegmentConfig.small_open``, followed by the candidates with sides unseen of that
+        size (``lines`` −1 there) from the evaluations :attr:`open_pool` and
+        :attr:`late_pool` come from, which stereo pairs last of all.
     three_sided : ndarray, shape (K,), bool
         Per cover, whether it is one of the three-sided candidates, kept as a cover
         (``SegmentConfig.three_sided_support``): its fourth side unseen; its ``support``
@@ -414,7 +417,8 @@ def open_candidates(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
                     timing: dict[str, float] | None = None) -> Quads:
     """The three-sided candidates (:func:`three_sided_quads`) of one evaluation (made with
     ``cfg``): from the lines its candidates were formed from (``timing``: under
-    ``"three_sided"``)."""
+    ``"three_sided"``); with ``cfg.small_open`` down to ``cfg.pool_min_area_px``
+    (:func:`split_small` parts them)."""
     if ev.all_lines is None or ev.profile is None or len(ev.all_lines) < 3:
         return Quads.empty()
     clock = time.perf_counter()
@@ -427,10 +431,11 @@ def open_candidates(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
 
 def _open_quads(cfg: SegmentConfig) -> QuadConfig:
     """The quad rules for the candidates with sides unseen: with ``cfg.small_open``, down
-    to ``cfg.pool_min_area_px`` (:func:`split_small` parts them from the covers' size)."""
+    to ``cfg.pool_min_area_px`` (``QuadConfig.small_area_px``; :func:`split_small` parts
+    them from the covers' size)."""
     if not cfg.small_open:
         return cfg.quads
-    return replace(cfg.quads, min_area_px=min(cfg.quads.min_area_px, cfg.pool_min_area_px))
+    return replace(cfg.quads, small_area_px=cfg.pool_min_area_px)
 
 
 def split_small(quads: Quads, cfg: SegmentConfig) -> tuple[Quads, Quads]:
@@ -446,7 +451,8 @@ def two_sided_candidates(grad: Gradients, ev: Evaluation, cfg: SegmentConfig, *,
     """The two-sided candidates (:func:`two_sided_quads`, and with
     ``cfg.opposite_sided`` :func:`opposite_sided_quads`) of one evaluation (made with
     ``cfg``), from the lines its candidates were formed from (``timing``: under
-    ``"two_sided"``)."""
+    ``"two_sided"``); with ``cfg.small_open`` down to ``cfg.pool_min_area_px``
+    (:func:`split_small` parts them)."""
     if ev.all_lines is None or ev.profile is None or len(ev.all_lines) < 2:
         return Quads.empty()
     clock = time.perf_counter()

@@ -287,7 +287,8 @@ def unseen_candidates(grad: Gradients, evaluations: Sequence[Evaluation], near: 
     :attr:`Segmentation.open_pool` of the evaluations :func:`with_open_candidates` is asked
     of, and :attr:`Segmentation.late_pool` (``cfg.late_open``) of the closed loop's other
     T_H with covers. With ``cfg.small_open``, those smaller than a cover are appended to
-    ``smalls`` instead (for :attr:`Segmentation.small_pool`)."""
+    ``smalls`` instead (for :attr:`Segmentation.small_pool`; without ``smalls`` they are
+    let go)."""
     if not evaluations:
         return Quads.empty()
 

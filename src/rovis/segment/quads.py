@@ -55,6 +55,12 @@ class QuadConfig:
     # tests/test_stereo_pipeline.py lost a book and no dev-set book changed)
     min_in_view: float = 0.6
     max_candidates: int = 4000  # per edge map, strongest first (bounds the time on busy texture)
+    # The candidates with sides unseen (three_sided_quads, two_sided_quads,
+    # opposite_sided_quads) down to this area (pixels²) too, if it is under min_area_px:
+    # near-duplicates are merged among the cover-sized ones and among the smaller ones
+    # apart, so the cover-sized ones are those min_area_px alone gives
+    # (SegmentConfig.small_open; None: min_area_px)
+    small_area_px: float | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -286,7 +292,7 @@ def three_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[
     area = np.abs(_shoelace(corners))  # pixels²
     keep = ((far_len >= cfg.min_side_px) & (far_len <= cfg.max_side_px)
             & (cos_far >= np.cos(np.radians(max_skew_deg))) & inside
-            & (area >= cfg.min_area_px) & (area <= cfg.max_area_frac * roi_area)
+            & (area >= _least_area(cfg)) & (area <= cfg.max_area_frac * roi_area)
             & _convex_with_angles(corners, cfg.min_corner_deg))
     if not keep.any():
         return Quads.empty()
@@ -297,7 +303,7 @@ def three_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[
     quads = Quads(np.column_stack([b, c, np.full(len(a), -1), a])[keep], corners[keep],
                   np.minimum(support[keep], 1.0), (base_hits + run_a + run_c)[keep],
                   lines.votes[np.column_stack([a, b, c])[keep]].min(axis=1))
-    return _distinct(quads, cfg.duplicate_px)[0]
+    return _distinct_apart(quads, cfg)
 
 
 def two_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[int, int],
@@ -359,7 +365,7 @@ def two_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     inside = np.all((corners >= 0) & (corners < [wid, h]), axis=(1, 2))
     area = np.abs(_shoelace(corners))  # pixels²
     keep = (inside & (end[ra, w] <= cfg.max_side_px) & (end[rb, w] <= cfg.max_side_px)
-            & (area >= cfg.min_area_px) & (area <= cfg.max_area_frac * roi_area)
+            & (area >= _least_area(cfg)) & (area <= cfg.max_area_frac * roi_area)
             & _convex_with_angles(corners, cfg.min_corner_deg))
     if not keep.any():
         return Quads.empty()
@@ -370,7 +376,7 @@ def two_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[in
     quads = Quads(np.column_stack([la, open_side, open_side, lb])[keep], corners[keep],
                   np.minimum(support[keep], 1.0), (hit[ra, w] + hit[rb, w])[keep],
                   np.minimum(lines.votes[la], lines.votes[lb])[keep])
-    return _distinct(quads, cfg.duplicate_px)[0]
+    return _distinct_apart(quads, cfg)
 
 
 def opposite_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tuple[int, int],
@@ -457,7 +463,7 @@ def opposite_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tup
     keep = (inside & (np.minimum(lat[0], lat[1]) >= cfg.min_side_px)
             & (np.maximum(lat[0], lat[1]) <= cfg.max_side_px)
             & (np.maximum(side_a, side_b) <= cfg.max_side_px)
-            & (area >= cfg.min_area_px) & (area <= cfg.max_area_frac * roi_area)
+            & (area >= _least_area(cfg)) & (area <= cfg.max_area_frac * roi_area)
             & _convex_with_angles(corners, cfg.min_corner_deg))
     if not keep.any():
         return Quads.empty()
@@ -470,7 +476,7 @@ def opposite_sided_quads(lines: Lines, profile: SupportProfile, image_shape: tup
     quads = Quads(np.column_stack([la, open_side, lb, open_side])[keep], corners[keep],
                   np.minimum(support[keep], 1.0), (hits_a + hits_b)[keep],
                   np.minimum(lines.votes[la], lines.votes[lb])[keep])
-    return _distinct(quads, cfg.duplicate_px)[0]
+    return _distinct_apart(quads, cfg)
 
 
 def _run_end(profile: SupportProfile, line: NDArray[np.intp], t0: NDArray[np.float64],
@@ -700,6 +706,25 @@ class CoverSelection:
             if not any(self._conflicts(q, p) for p in kept):
                 kept.append(q)
         return kept
+
+
+def _least_area(cfg: QuadConfig) -> float:
+    """The smallest candidate with sides unseen (pixels²): ``cfg.small_area_px`` if set and
+    under ``cfg.min_area_px``, else that."""
+    if cfg.small_area_px is None:
+        return cfg.min_area_px
+    return min(cfg.small_area_px, cfg.min_area_px)
+
+
+def _distinct_apart(quads: Quads, cfg: QuadConfig) -> Quads:
+    """:func:`_distinct` among the candidates of a cover's area (``cfg.min_area_px`` or
+    more) and among the smaller ones apart (the cover-sized first): a smaller near-copy
+    does not take the place of a cover-sized candidate."""
+    if _least_area(cfg) >= cfg.min_area_px:
+        return _distinct(quads, cfg.duplicate_px)[0]
+    big = np.abs(_shoelace(quads.corners)) >= cfg.min_area_px
+    return Quads.concat([_distinct(quads.take(big), cfg.duplicate_px)[0],
+                         _distinct(quads.take(~big), cfg.duplicate_px)[0]])
 
 
 def _distinct(quads: Quads, tol_px: float) -> tuple[Quads, NDArray[np.int64]]:
