@@ -518,6 +518,11 @@ class Detector:
                     found += self._fit_extents(rig, segs, grads, more, desk_plane, texture,
                                                ideal)
                 lap("stereo")
+        # a book from the small candidates with sides unseen that the extent step left under
+        # its bound (stereo.small_open_min_side) is a piece of a cover cut short at a band of
+        # its print, or a strip of desk: it goes now, before it keeps the steps below from
+        # growing that cover (and again at the end, after them)
+        found, narrow = self._without_small(found, small_open_only=True)
         # beyond the paper: two touching books taken for one cover, split at their seam
         # (after the extent step, which would grow each part over the other again)
         if self.cfg.split.enabled and desk_plane is not None:
@@ -548,10 +553,11 @@ class Detector:
         # last, since the extent step may grow a piece of a cover to the whole cover
         small_open = sum(pair.small_open for pair, _ in found)
         found, small = self._without_small(found)
-        if small:
-            dropped += small
+        if small or narrow:
             # (a book from the small pass with sides unseen has a bound of its own)
-            small_open -= sum(pair.small_open for pair, _ in found)
+            small_open += len(narrow) - sum(pair.small_open for pair, _ in found)
+            small = narrow + small
+            dropped += small
             also = (f" ({small_open} from small candidates with sides unseen, narrower than "
                     f"{self.cfg.stereo.small_open_min_side * 100:g} cm)" if small_open else "")
             warnings.append(f"{len(small)} cover(s) narrower than {self.cfg.min_cover_side * 100:g} "
@@ -2186,16 +2192,18 @@ class Detector:
                 kept.append((pair, book))
         return kept, over
 
-    def _without_small(self, found: list[tuple[Pair, BookDetection]],
+    def _without_small(self, found: list[tuple[Pair, BookDetection]], *,
+                       small_open_only: bool = False,
                        ) -> tuple[list[tuple[Pair, BookDetection]],
                                   list[tuple[str, NDArray[np.float64], NDArray[np.float64]]]]:
         """The books with no side shorter than ``min_cover_side`` (``stereo.small_open_min_side``
-        for one from a small candidate with sides unseen), and the others as dropped pairs
-        (``"too small"``, left corners, right corners)."""
+        for one from a small candidate with sides unseen; with ``small_open_only``, only
+        those are looked at), and the others as dropped pairs (``"too small"``, left
+        corners, right corners)."""
         kept, small = [], []
         for pair, book in found:
             least = (max(self.cfg.min_cover_side, self.cfg.stereo.small_open_min_side)
-                     if pair.small_open else self.cfg.min_cover_side)
+                     if pair.small_open else 0.0 if small_open_only else self.cfg.min_cover_side)
             if min(book.pose.size[0], book.pose.size[1]) < least:
                 small.append(("too small", pair.left, pair.right))
             else:
