@@ -117,9 +117,10 @@ class StereoConfig:
     late_max_reprojection_px: float = 1.0
     # Last of all, a pair with a small candidate with sides unseen (SegmentConfig.small_open),
     # as the late pool's pairs (late_max_reprojection_px too); the book must not be the desk
-    # between books found (two sides on theirs) and each side at least this long (metres:
-    # the scene model's narrowest book is 9 cm; a cover cut short by a band of its print,
-    # or a strip of desk, is narrower)
+    # between books found (two sides on theirs), and each side must be at least this long
+    # after the extent step and at the end (metres: the scene model's narrowest book is
+    # 9 cm; a piece of a cover cut short at a band of its print, or a strip of desk, is
+    # narrower)
     small_open_min_side: float = 0.075
 
 
