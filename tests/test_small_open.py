@@ -36,8 +36,9 @@ def _square(x: float, y: float, side: float) -> np.ndarray:
 
 def test_split_small_parts_candidates_at_the_covers_area():
     cfg = SegmentConfig()  # covers from 5000 px²
-    quads = _quads([_square(0, 0, 60), _square(100, 0, 80), _square(200, 0, 71)])  # 3600,
-    big, small = split_small(quads, cfg)  # 6400, 5041 px²
+    # 3600, 6400 and 5041 px²
+    quads = _quads([_square(0, 0, 60), _square(100, 0, 80), _square(200, 0, 71)])
+    big, small = split_small(quads, cfg)
     assert sorted(big.corners[:, 0, 0].tolist()) == [100.0, 200.0]
     assert small.corners[:, 0, 0].tolist() == [0.0]
 

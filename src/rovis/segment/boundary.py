@@ -21,7 +21,7 @@ from rovis.segment.edges import Gradients, canny
 from rovis.segment.lines import (Lines, SupportProfile, hough_lines, intersect, refine_lines,
                                  refine_segment, support_profile)
 from rovis.segment.quads import (CoverSelection, CornerGraph, QuadConfig, Quads, _canonical,
-                                 _corner_graph, _shoelace, canonical_quads,
+                                 _corner_graph, canonical_quads, cover_sized,
                                  _distinct, candidate_quads, opposite_sided_quads, order_corners,
                                  three_sided_quads, two_sided_quads)
 from rovis.segment.quality import PRINTED, quality
@@ -308,7 +308,7 @@ def evaluate(grad: Gradients, T_H: float, cfg: SegmentConfig, *, T_HG: int | Non
                             replace(cfg.quads, min_area_px=min(cfg.quads.min_area_px,
                                                                cfg.pool_min_area_px)),
                             graph=graph)
-    big = np.abs(_shoelace(quads.corners)) >= cfg.quads.min_area_px
+    big = cover_sized(quads, cfg.quads)
     small = _distinct(quads.take(~big), cfg.quads.duplicate_px)[0]  # (near-duplicates)
     selection = CoverSelection(quads.take(big), cfg.quads)
     if T_HG is not None:
@@ -441,7 +441,7 @@ def _open_quads(cfg: SegmentConfig) -> QuadConfig:
 def split_small(quads: Quads, cfg: SegmentConfig) -> tuple[Quads, Quads]:
     """``quads`` parted into those of a cover's area (``cfg.quads.min_area_px`` or more,
     pixels²) and the smaller ones."""
-    big = np.abs(_shoelace(quads.corners)) >= cfg.quads.min_area_px
+    big = cover_sized(quads, cfg.quads)
     return quads.take(big), quads.take(~big)
 
 

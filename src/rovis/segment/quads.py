@@ -716,13 +716,18 @@ def _least_area(cfg: QuadConfig) -> float:
     return min(cfg.small_area_px, cfg.min_area_px)
 
 
+def cover_sized(quads: Quads, cfg: QuadConfig) -> NDArray[np.bool_]:
+    """Per candidate, whether it has a cover's area (``cfg.min_area_px`` or more, pixels²)."""
+    return np.abs(_shoelace(quads.corners)) >= cfg.min_area_px
+
+
 def _distinct_apart(quads: Quads, cfg: QuadConfig) -> Quads:
     """:func:`_distinct` among the candidates of a cover's area (``cfg.min_area_px`` or
     more) and among the smaller ones apart (the cover-sized first): a smaller near-copy
     does not take the place of a cover-sized candidate."""
     if _least_area(cfg) >= cfg.min_area_px:
         return _distinct(quads, cfg.duplicate_px)[0]
-    big = np.abs(_shoelace(quads.corners)) >= cfg.min_area_px
+    big = cover_sized(quads, cfg)
     return Quads.concat([_distinct(quads.take(big), cfg.duplicate_px)[0],
                          _distinct(quads.take(~big), cfg.duplicate_px)[0]])
 
