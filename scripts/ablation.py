@@ -40,6 +40,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the facing sides' edge", ["facing.enabled=false"]),
     ("a side on its block's foot in one image", ["facing.block_sides=false"]),
     ("a side on its foot, lifted", ["lift_foot=false"]),
+    ("a side left out of the flat refit", ["flat_refit_sides=0"]),
     ("the height from the sides", ["side_height.enabled=false"]),
     ("the extent step", ["extent.grow=false", "extent.shrink=false"]),
     ("a printed frame grown to the cover's edges", ["extent.frame=false"]),

@@ -104,8 +104,8 @@ def test_an_alternative_overlapping_a_book_already_found_is_not_tried(book):
 
 def test_detect_retries_a_tilted_pair_and_finds_the_book_only_with_alternatives(book, monkeypatch):
     # the segmentation stubbed: the left image's quad is the outline, the cover only its
-    # alternative; with the one-image search and the extent step off, only the retry can
-    # find the book
+    # alternative; with the one-image search, the extent step and the side fit off, only
+    # the retry can find the book
     import rovis.pipeline as pipeline
     P, ideal, grads, desk, rig, (raw_left, raw_right) = book
     cover = _covers(P, grads, rig)
@@ -119,13 +119,38 @@ def test_detect_retries_a_tilted_pair_and_finds_the_book_only_with_alternatives(
 
     monkeypatch.setattr(pipeline, "segment", fake_segment)
     # full_view off: the stub's quads are in the rig's own ideal pixels
-    off = ["stereo.transfer=false", "extent.grow=false", "extent.shrink=false", "full_view=false"]
+    off = ["stereo.transfer=false", "extent.grow=false", "extent.shrink=false", "full_view=false",
+           "flat_refit_sides=0"]
     on = Detector(rig, with_settings(DetectConfig(), off)).detect(raw_left, raw_right)
     without = Detector(rig, with_settings(DetectConfig(), off + ["stereo.alternatives=false"])
                        ).detect(raw_left, raw_right)
     assert len(on.objects) == 1 and not on.dropped
     assert np.linalg.norm(np.asarray(on.objects[0].pose.center) - P.mean(axis=0)) < 0.01
     assert not without.objects and [why for why, _, _ in without.dropped] == ["tilted"]
+
+
+def test_the_outline_pair_fitted_to_its_sides_gives_the_cover(book, monkeypatch):
+    # the same stub, the retry off: the outline's right-hand side (8 px out, as if on the
+    # page block's foot) lies outside the cover in the left image only, so the flat fit to
+    # the pair's sides with that side left out is the cover (fit_rectangle_sides)
+    import rovis.pipeline as pipeline
+    P, ideal, grads, desk, rig, (raw_left, raw_right) = book
+    cover = _covers(P, grads, rig)
+    segs = {"left": _segmentation(_outline(P, rig), [cover["left"]]),
+            "right": _segmentation(cover["right"], [])}
+    calls: list[str] = []
+
+    def fake_segment(gray, grad, method, *, controller, cfg, timing):
+        calls.append("left" if len(calls) % 2 == 0 else "right")
+        return segs[calls[-1]]
+
+    monkeypatch.setattr(pipeline, "segment", fake_segment)
+    off = ["stereo.transfer=false", "extent.grow=false", "extent.shrink=false", "full_view=false",
+           "stereo.alternatives=false"]
+    res = Detector(rig, with_settings(DetectConfig(), off)).detect(raw_left, raw_right)
+    assert len(res.objects) == 1
+    got = np.asarray(res.objects[0].corners_world)
+    assert np.linalg.norm(got[:, None] - P[None], axis=2).min(axis=1).max() < 0.003  # m
 
 
 def test_a_cover_from_the_alternatives_must_stand_above_the_desk(book):

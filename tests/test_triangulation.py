@@ -192,3 +192,51 @@ def test_rectangle_on_the_desk_is_the_least_squares_optimum(rig):
             side = np.sign((fit - centre) @ axis)[:, None] * axis
             assert cost(fit + 0.00025 * side) >= best
             assert cost(fit - 0.00025 * side) >= best
+
+
+def _side_moved_out(px: np.ndarray, s: int, by: float) -> np.ndarray:
+    """Quad ``px`` (4, 2) with side ``s``'s line moved ``by`` pixels out of the quad, its two
+    corners where it meets its neighbours' lines (a side seen on an edge beside the cover)."""
+    a, b = px[s], px[(s + 1) % 4]
+    d = (b - a) / np.linalg.norm(b - a)
+    n = np.array([d[1], -d[0]])
+    if n @ (a - px.mean(axis=0)) < 0:
+        n = -n
+    out = px.copy()
+    for k, other in ((s, (s - 1) % 4), ((s + 1) % 4, (s + 2) % 4)):
+        e = px[k] - px[other]  # the neighbour's line through px[other] and px[k]
+        t = by / (n @ e)  # along it, to the moved line
+        out[k] = px[k] + t * e
+    return out
+
+
+@pytest.mark.parametrize("yaw, s", [(15.0, 1), (100.0, 3), (60.0, 0)])
+def test_a_side_left_out_of_the_flat_fit(rig, yaw, s):
+    # the right image's side s on an edge 3 px outside the cover (its page block's foot,
+    # its shadow's soft edge): fitted to every side, the flat rectangle misses the side in
+    # both images, by up to half of it (still outside it in the right image); with it left
+    # out, the rectangle is the cover and the side lies the 3 px outside it
+    desk = np.array([0.0, 0.0, 1.0, 0.0])
+    P = _cover(yaw, [0.45, 0.4, 0.04], 0.2, 0.13)
+    pl, pr = _project(rig.Q_L, P), _project(rig.Q_R, P)
+    fit, off = geometry.fit_rectangle_sides(rig.Q_L, rig.Q_R, pl, pr, P + 0.003, desk)
+    assert np.abs(fit - P).max() < 1e-6 and np.abs(off).max() < 1e-6
+    moved = _side_moved_out(pr, s, 3.0)
+    start = geometry.triangulate(rig.Q_L, rig.Q_R, pl, moved)
+    fit, off = geometry.fit_rectangle_sides(rig.Q_L, rig.Q_R, pl, moved, start, desk)
+    assert off[1, s] > 0.5  # px
+    assert np.abs(fit - P).max() > 0.001  # m
+    use = np.ones((2, 4), bool)
+    use[1, s] = False
+    fit, off = geometry.fit_rectangle_sides(rig.Q_L, rig.Q_R, pl, moved, start, desk, use=use)
+    assert np.abs(fit - P).max() < 1e-6  # m
+    assert np.abs(off[use]).max() < 1e-6
+    assert off[1, s] == pytest.approx(3.0, abs=0.01)  # px, outside
+    # the corners in the other order round: the same fit, the same offsets
+    fit2, off2 = geometry.fit_rectangle_sides(rig.Q_L, rig.Q_R, pl[::-1], moved[::-1],
+                                              start[::-1], desk, use=use[:, [2, 1, 0, 3]])
+    np.testing.assert_allclose(fit2[::-1], fit, atol=1e-9)
+    np.testing.assert_allclose(off2[:, [2, 1, 0, 3]], off, atol=1e-6)
+    with pytest.raises(ValueError, match="both images"):
+        geometry.fit_rectangle_sides(rig.Q_L, rig.Q_R, pl, moved, start, desk,
+                                     use=[[True] * 4, [False] * 4])

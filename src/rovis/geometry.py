@@ -491,40 +491,13 @@ def fit_rectangle(Q_L: ArrayLike, Q_R: ArrayLike, px_left: ArrayLike, px_right: 
         scale = np.r_[[0.01] * 3, [0.001] * 3, [0.001] * 2]
         jac: Any = "2-point"
     else:
-        n = np.asarray(desk_plane, dtype=np.float64)[:3]
-        n = n / np.linalg.norm(n)
-        e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
-        e1 /= np.linalg.norm(e1)
-        e2 = np.cross(n, e1)
-        x_axis = pose.R[:, 0] - (pose.R[:, 0] @ n) * n  # the heading, on the desk
-        x_axis /= np.linalg.norm(x_axis)
-        # the corners' quadrants in the frame the fit turns (y = up × x, whichever way
-        # round the corners go)
-        signs = np.sign((P0 - pose.center) @ np.column_stack([x_axis, np.cross(n, x_axis)]))
-        signs[signs == 0] = 1.0
-
-        # the heading's axes: xd = cos·e1 + sin·e2, and yd = n × xd = cos·e2 − sin·e1
-        # (e1, e2, n right-handed; np.cross costs more than the rest of the fit)
-        def rectangle(x: NDArray[np.float64]) -> NDArray[np.float64]:
-            c, s = np.cos(x[0]), np.sin(x[0])
-            xd, yd = c * e1 + s * e2, c * e2 - s * e1
-            return x[1:4] + 0.5 * x[4] * signs[:, :1] * xd + 0.5 * x[5] * signs[:, 1:] * yd
-
-        x0 = np.concatenate([[np.arctan2(x_axis @ e2, x_axis @ e1)], pose.center,
-                             pose.size[:2]])
+        rectangle, jac_P, x0 = _flat_rectangle(P0, desk_plane)
         scale = np.r_[0.01, [0.001] * 3, [0.001] * 2]
 
         def jacobian(x: NDArray[np.float64]) -> NDArray[np.float64]:
             # analytic: the fit runs once per book and frame in tracking, where the
             # 2-point differences' six extra evaluations per step cost most of its time
-            c, s = np.cos(x[0]), np.sin(x[0])
-            xd, yd = c * e1 + s * e2, c * e2 - s * e1
-            dP = np.empty((4, 3, 6))  # d corner / d (heading, centre, length, width)
-            dP[:, :, 0] = 0.5 * x[4] * signs[:, :1] * yd - 0.5 * x[5] * signs[:, 1:] * xd
-            dP[:, :, 1:4] = np.eye(3)
-            dP[:, :, 4] = 0.5 * signs[:, :1] * xd
-            dP[:, :, 5] = 0.5 * signs[:, 1:] * yd
-            return _projection_jacobian(rectangle(x), dP, Q_L, Q_R)
+            return _projection_jacobian(rectangle(x), jac_P(x), Q_L, Q_R)
 
         jac = jacobian
 
@@ -534,6 +507,131 @@ def fit_rectangle(Q_L: ArrayLike, Q_R: ArrayLike, px_left: ArrayLike, px_right: 
 
     sol = least_squares(residuals, x0, jac=jac, method="lm", x_scale=scale)
     return rectangle(sol.x)
+
+
+def _flat_rectangle(P0: NDArray[np.float64], desk_plane: ArrayLike) -> tuple[
+        Any, Any, NDArray[np.float64]]:
+    """A rectangle parallel to the desk, parametrised for a fit started at corners ``P0``
+    (4, 3): ``x`` = heading about the desk's normal (rad), centre (3, metres), length,
+    width (metres). Returns ``rectangle(x)`` (its corners (4, 3), in ``P0``'s order),
+    ``jac(x)`` (d corners / d x, (4, 3, 6)) and the start ``x0`` (6,)."""
+    pose = pose_from_corners(P0)
+    n = np.asarray(desk_plane, dtype=np.float64)[:3]
+    n = n / np.linalg.norm(n)
+    e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(n, e1)
+    x_axis = pose.R[:, 0] - (pose.R[:, 0] @ n) * n  # the heading, on the desk
+    x_axis /= np.linalg.norm(x_axis)
+    # the corners' quadrants in the frame the fit turns (y = up × x, whichever way
+    # round the corners go)
+    signs = np.sign((P0 - pose.center) @ np.column_stack([x_axis, np.cross(n, x_axis)]))
+    signs[signs == 0] = 1.0
+
+    # the heading's axes: xd = cos·e1 + sin·e2, and yd = n × xd = cos·e2 − sin·e1
+    # (e1, e2, n right-handed; np.cross costs more than the rest of the fit)
+    def rectangle(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        c, s = np.cos(x[0]), np.sin(x[0])
+        xd, yd = c * e1 + s * e2, c * e2 - s * e1
+        return x[1:4] + 0.5 * x[4] * signs[:, :1] * xd + 0.5 * x[5] * signs[:, 1:] * yd
+
+    def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        c, s = np.cos(x[0]), np.sin(x[0])
+        xd, yd = c * e1 + s * e2, c * e2 - s * e1
+        dP = np.empty((4, 3, 6))  # d corner / d (heading, centre, length, width)
+        dP[:, :, 0] = 0.5 * x[4] * signs[:, :1] * yd - 0.5 * x[5] * signs[:, 1:] * xd
+        dP[:, :, 1:4] = np.eye(3)
+        dP[:, :, 4] = 0.5 * signs[:, :1] * xd
+        dP[:, :, 5] = 0.5 * signs[:, 1:] * yd
+        return dP
+
+    x0 = np.concatenate([[np.arctan2(x_axis @ e2, x_axis @ e1)], pose.center, pose.size[:2]])
+    return rectangle, jac, x0
+
+
+def fit_rectangle_sides(Q_L: ArrayLike, Q_R: ArrayLike, px_left: ArrayLike,
+                        px_right: ArrayLike, corners: ArrayLike, desk_plane: ArrayLike, *,
+                        use: ArrayLike | None = None,
+                        ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """One rectangle parallel to the desk fitted to a cover's sides in both images, not its
+    corners (beyond the paper).
+
+    A side one image saw on its page block's foot, or on the soft edge of the cover's
+    shadow, moves both of that image's corners on it, and the two corners of the sides
+    next to it along them: :func:`fit_rectangle` spreads that error over every corner.
+    Here each image's side is a line (through its two measured corners), and the residuals
+    are the distances of the rectangle's projected corners to the lines of the sides they
+    end (2 per side, 16 in all), so a side can be left out (``use``) without losing the
+    others.
+
+    Parameters
+    ----------
+    Q_L, Q_R : array_like, shape (3, 4)
+        World → pixel projections.
+    px_left, px_right : array_like, shape (4, 2)
+        Corresponding corners, pixels; side s runs from corner s to s + 1.
+    corners : array_like, shape (4, 3)
+        Their triangulation (world, metres): the starting point.
+    desk_plane : array_like, shape (4,)
+        ``[nx, ny, nz, d]`` (world, normal up).
+    use : array_like of bool, shape (2, 4), optional
+        Which sides (left image, right image) the fit uses; all by default. Both images'
+        sides must be among them, three or more in all (one image's sides alone give no
+        depth).
+
+    Returns
+    -------
+    corners : ndarray, shape (4, 3)
+        The rectangle's corners (world, metres), in the order of ``corners``.
+    off : ndarray, shape (2, 4)
+        Per image and side, the larger distance (pixels) of the side's two projected
+        corners from its measured line, signed: positive where the measured line lies
+        outside the fitted quad.
+    """
+    from scipy.optimize import least_squares
+
+    Q_L, Q_R = np.asarray(Q_L, dtype=np.float64), np.asarray(Q_R, dtype=np.float64)
+    px = np.stack([np.asarray(px_left, dtype=np.float64).reshape(4, 2),
+                   np.asarray(px_right, dtype=np.float64).reshape(4, 2)])  # (2, 4, 2)
+    rectangle, jac_P, x0 = _flat_rectangle(np.asarray(corners, dtype=np.float64).reshape(4, 3),
+                                           desk_plane)
+    used = np.ones((2, 4), bool) if use is None else np.asarray(use, bool)
+    if used.shape != (2, 4) or not used.any(axis=1).all() or used.sum() < 3:
+        raise ValueError("fit_rectangle_sides: use must be (2, 4), with sides of both images, "
+                         "three or more")
+    d = np.roll(px, -1, axis=1) - px
+    length = np.linalg.norm(d, axis=-1)
+    if not np.all(length > 1e-9):
+        raise ValueError("fit_rectangle_sides: a side of zero length")
+    # each side's normal pointing out of its quad: (dy, -dx) is outward for a quad whose
+    # corners run clockwise in the image (y down), the shoelace area's sign says which way
+    # they run
+    area = np.sum(px[..., 0] * np.roll(px[..., 1], -1, axis=1)
+                  - np.roll(px[..., 0], -1, axis=1) * px[..., 1], axis=1)  # (2,), twice
+    normal = np.stack([d[..., 1], -d[..., 0]], axis=-1) / length[..., None]
+    normal *= np.where(area < 0, -1.0, 1.0)[:, None, None]
+    ends = np.array([[s, (s + 1) % 4] for s in range(4)])  # (side, end) -> corner
+    mask = used.repeat(2).ravel()
+
+    def distances(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        P = rectangle(x)
+        uv = np.stack([project(Q_L, P), project(Q_R, P)])[:, ends]  # (2, 4, 2 ends, 2)
+        # > 0 where the projected corner lies outside the measured side's line
+        return np.einsum("csek,csk->cse", uv - px[:, :, None], normal)  # (2, 4, 2)
+
+    def residuals(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        return distances(x).ravel()[mask]
+
+    def jacobian(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        J = _projection_jacobian(rectangle(x), jac_P(x), Q_L, Q_R).reshape(2, 4, 2, 6)
+        return np.einsum("csekp,csk->csep", J[:, ends], normal).reshape(16, 6)[mask]
+
+    scale = np.r_[0.01, [0.001] * 3, [0.001] * 2]
+    sol = least_squares(residuals, x0, jac=jacobian, method="lm", x_scale=scale)
+    dist = distances(sol.x)
+    # the measured line outside the fit: the projected corners inside it (negative)
+    off = -np.where(np.abs(dist[..., 0]) >= np.abs(dist[..., 1]), dist[..., 0], dist[..., 1])
+    return rectangle(sol.x), off
 
 
 def _projection_jacobian(P: NDArray[np.float64], dP: NDArray[np.float64], Q_L: NDArray[np.float64],

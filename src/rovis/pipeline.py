@@ -126,9 +126,16 @@ class DetectConfig:
         the cover's height (:func:`rovis.extent.lift_foot`; beyond the paper; needs the
         desk plane).
     flat_refit_px : float
-        Pixels; 0 turns it off. A stereo pair that comes out tilted or with a side on the
-        desk is refit as one rectangle parallel to the desk, kept where every corner of
-        both images lies within this of it (beyond the paper; needs the desk plane).
+        Pixels; 0 turns it off (and ``flat_refit_sides`` with it). A stereo pair that comes
+        out tilted or with a side on the desk is refit as one rectangle parallel to the
+        desk, kept where every corner of both images lies within this of it (beyond the
+        paper; needs the desk plane).
+    flat_refit_sides : float
+        Pixels; 0 turns it off. Where that refit misses, the rectangle is fitted to the
+        pair's sides instead of its corners, one image's side left out: one that lies
+        outside the fit by more than ``flat_refit_px`` (a page block's foot, the soft edge
+        of the cover's shadow), the other seven sides within this of it
+        (:meth:`Detector._side_fit`; beyond the paper).
     unskew_deg, unskew_height : float
         Degrees (0 turns it off), metres. A cover whose corners make an angle further than
         ``unskew_deg`` from 90° has a side on a line of its print or a neighbour's edge:
@@ -180,6 +187,7 @@ class DetectConfig:
     fit_rectangle: bool = False
     lift_foot: bool = True
     flat_refit_px: float = 1.0
+    flat_refit_sides: float = 1.0
     unskew_deg: float = 8.0
     unskew_height: float = 0.01
     full_view: bool = True
@@ -1956,7 +1964,9 @@ class Detector:
         that image's side is moved to the cover's height the other sides give
         (:func:`rovis.extent.settle_block_sides`; ``facing.block_sides``), and the moved
         pair fitted flat, or else reconstructed as it is (one free rectangle); where
-        neither makes a book, the pair as it came is fitted flat."""
+        neither makes a book, the pair as it came is fitted flat; where that misses, it is
+        fitted to its sides with one image's side left out (:meth:`_side_fit`,
+        ``flat_refit_sides``)."""
         if self.cfg.facing.block_sides:
             settled = settle_block_sides({"left": pair.left, "right": pair.right},
                                          {"left": rig.Q_L, "right": rig.Q_R}, desk_plane,
@@ -1969,7 +1979,47 @@ class Detector:
                     out = trial if trial[1] is not None else None
                 if out is not None:
                     return out
-        return self._flat_fit(rig, pair, desk_plane, texture)
+        out = self._flat_fit(rig, pair, desk_plane, texture)
+        if out is None and self.cfg.flat_refit_sides > 0:
+            out = self._side_fit(rig, pair, desk_plane, texture)
+        return out
+
+    def _side_fit(self, rig: StereoRig, pair: Pair, desk_plane: NDArray[np.float64],
+                  texture: dict[str, NDArray[np.float32]] | None,
+                  ) -> tuple[Pair, BookDetection, str] | None:
+        """The pair as one rectangle parallel to the desk fitted to its sides, one image's
+        side left out (:func:`rovis.geometry.fit_rectangle_sides`), or None.
+
+        A side one image saw on its page block's foot or on the soft edge of the cover's
+        shadow lies outside the cover there, and the cover comes out tilted: fitted flat to
+        the corners, it misses every corner by a pixel or two. Each side of either image
+        whose line lies outside the fit to all eight (which spreads the error, up to half of
+        it, over both images) is left out in turn; the fit that brings the other seven
+        closest, within ``flat_refit_sides``, with the left-out side more than
+        ``flat_refit_px`` outside it, is kept if it passes the pose checks."""
+        P0 = geometry.triangulate(rig.Q_L, rig.Q_R, pair.left, pair.right)
+        if not np.all(np.isfinite(P0)):
+            return None
+        tol = self.cfg.flat_refit_px
+        try:
+            _, off = geometry.fit_rectangle_sides(rig.Q_L, rig.Q_R, pair.left, pair.right, P0,
+                                                  desk_plane)
+            best: tuple[float, NDArray[np.float64]] | None = None
+            for c, s in zip(*np.nonzero(off > 0)):
+                use = np.ones((2, 4), bool)
+                use[c, s] = False
+                P, off_c = geometry.fit_rectangle_sides(rig.Q_L, rig.Q_R, pair.left,
+                                                        pair.right, P0, desk_plane, use=use)
+                worst = float(np.abs(off_c[use]).max())
+                if (worst <= self.cfg.flat_refit_sides and off_c[c, s] > tol
+                        and (best is None or worst < best[0])):
+                    best = (worst, P)
+        except ValueError:
+            return None
+        if best is None or not np.all(np.isfinite(best[1])):
+            return None
+        trial = self._reconstruct_or_why(rig, _pair_at(rig, pair, best[1]), desk_plane, texture)
+        return trial if trial[1] is not None else None
 
     def _flat_fit(self, rig: StereoRig, pair: Pair, desk_plane: NDArray[np.float64],
                   texture: dict[str, NDArray[np.float32]] | None,
