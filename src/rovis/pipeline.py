@@ -133,8 +133,8 @@ class DetectConfig:
     flat_refit_sides : float
         Pixels; 0 turns it off. Where that refit misses, the rectangle is fitted to the
         pair's sides instead of its corners, one image's side left out: one that lies
-        outside the fit by more than ``flat_refit_px`` (a page block's foot, the soft edge
-        of the cover's shadow), the other seven sides within this of it
+        outside the fit by more than twice ``flat_refit_px`` (a page block's foot, the soft
+        edge of the cover's shadow), the other seven sides within this of it
         (:meth:`Detector._side_fit`; beyond the paper).
     unskew_deg, unskew_height : float
         Degrees (0 turns it off), metres. A cover whose corners make an angle further than
@@ -1995,8 +1995,9 @@ class Detector:
         the corners, it misses every corner by a pixel or two. Each side of either image
         whose line lies outside the fit to all eight (which spreads the error, up to half of
         it, over both images) is left out in turn; the fit that brings the other seven
-        closest, within ``flat_refit_sides``, with the left-out side more than
-        ``flat_refit_px`` outside it, is kept if it passes the pose checks."""
+        closest, within ``flat_refit_sides``, with the left-out side more than twice
+        ``flat_refit_px`` outside it (clear of the sides' own error), is kept if it passes
+        the pose checks."""
         P0 = geometry.triangulate(rig.Q_L, rig.Q_R, pair.left, pair.right)
         if not np.all(np.isfinite(P0)):
             return None
@@ -2011,7 +2012,7 @@ class Detector:
                 P, off_c = geometry.fit_rectangle_sides(rig.Q_L, rig.Q_R, pair.left,
                                                         pair.right, P0, desk_plane, use=use)
                 worst = float(np.abs(off_c[use]).max())
-                if (worst <= self.cfg.flat_refit_sides and off_c[c, s] > tol
+                if (worst <= self.cfg.flat_refit_sides and off_c[c, s] > 2 * tol
                         and (best is None or worst < best[0])):
                     best = (worst, P)
         except ValueError:
