@@ -20,6 +20,7 @@ from rovis.synth import textures
 from rovis.synth.textures import COVER_PX_PER_M, CoverSpec
 
 from conftest import ideal_images
+from dataset_scene import dataset_scene
 
 THICKNESS = 0.02
 
@@ -443,19 +444,11 @@ def test_no_edge_where_a_side_is_guessed_gives_no_cover(lone_book):
                      height_range=(0.03, 0.10)) is None
 
 
-def _dataset_scene(seed, scene):
-    """build/t1{,b,c}'s scene (rovis synth --protocol table1 --seed SEED), as rendered there."""
-    from rovis.synth.dataset import dataset_scenes
-
-    sc = next(s for k, s in dataset_scenes("table1", scene + 1, seed=seed) if k == scene)
-    return sc, render(sc, np.random.default_rng([seed, 9, scene]))
-
-
 @pytest.fixture(scope="module")
 def desk_toned_book():
     """build/t1b's scene 25, book 3: a plain 5.1 cm book of the desk's tone whose two far
     sides show no step in either image (against the desk, and against another plain book)."""
-    sc, r = _dataset_scene(2, 25)
+    sc, r = dataset_scene("table1", 2, 25)
     grads = {cam: gradients(img) for cam, img in ideal_images(sc.rig, r).items()}
     Q = {"left": sc.rig.Q_L, "right": sc.rig.Q_R}
     return np.array(r.truth["books"][3]["corners"]), Q, grads, np.asarray(r.truth["desk_plane"])
@@ -569,7 +562,7 @@ def test_the_pipeline_finds_books_of_the_desks_tone(seed, scene, book):
     # build/t1b's scene 25 book 3, build/t1's scene 8 book 4 and scene 30 book 3: plain
     # covers of the desk's tone, 3.4-5.8 cm high, whose far sides show no step in either
     # image; each is a candidate with two sides unseen, completed where its near sides end
-    sc, r = _dataset_scene(seed, scene)
+    sc, r = dataset_scene("table1", seed, scene)
     truth = np.asarray(r.truth["books"][book]["center"])
 
     def nearest(cfg):
@@ -657,10 +650,7 @@ def tall_book_aside():
     daylight): book 6, a light cover 4.6 cm thick left of the image centre, whose
     right-hand page block the right camera sees and the left hardly; the rendering and its
     corners (4, 3), the projections, the desk plane and that side."""
-    from rovis.synth.dataset import dataset_scenes
-
-    sc = next(s for k, s in dataset_scenes("table2", 50, seed=1) if k == 49)
-    r = render(sc, np.random.default_rng([1, 9, 49]))
+    sc, r = dataset_scene("table2", 1, 49)
     P = np.array(r.truth["books"][6]["corners"])
     Q = {"left": sc.rig.Q_L, "right": sc.rig.Q_R}
     desk = np.asarray(r.truth["desk_plane"])
@@ -1037,8 +1027,6 @@ def test_a_cover_found_whole_is_no_frame(framed_book):
     strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
     assert extent.grow_frame(P, Q, grads, gray, {"left": strength, "right": strength},
                              desk) is None
-
-
 
 
 def test_the_four_moves_must_agree(framed_book):

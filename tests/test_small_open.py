@@ -18,7 +18,8 @@ from rovis.segment.boundary import SegmentConfig, split_small
 from rovis.segment.control import small_candidates
 from rovis.segment.methods import segment
 from rovis.segment.quads import QuadConfig, Quads, _distinct_apart, _shoelace, order_corners
-from rovis.synth import render
+
+from dataset_scene import dataset_scene
 
 
 def _quads(corners: list[np.ndarray], unseen: tuple[int, ...] = (), n_f: float = 100.0) -> Quads:
@@ -71,20 +72,11 @@ def test_small_candidates_put_the_four_sided_first_and_drop_near_duplicates():
     assert small_candidates([], [], cfg) is None
 
 
-def _table1_scene(seed: int, scene: int) -> tuple[Any, Any]:
-    """Scene ``scene`` of ``rovis synth --protocol table1 --seed SEED`` (build/t1c's for seed
-    3), rendered as that command does."""
-    from rovis.synth.dataset import dataset_scenes
-
-    sc = next(s for k, s in dataset_scenes("table1", scene + 1, seed=seed) if k == scene)
-    return sc, render(sc, np.random.default_rng([seed, 9, scene]))
-
-
 def test_a_small_plain_cover_shows_as_a_small_candidate_with_sides_unseen():
     # build/t1c scene 36's book 1: a 133 x 93 mm grey cover 36 mm high at the far side of the
     # workspace, about 3100 px² in the left image; its near sides meet at a corner, its far
     # sides show no edge. Only with small_open does any candidate come near it.
-    sc, r = _table1_scene(3, 36)
+    sc, r = dataset_scene("table1", 3, 36)
     book = r.truth["books"][1]
 
     def nearest(cfg: DetectConfig) -> tuple[float, str, int, Any]:
@@ -116,7 +108,7 @@ def test_a_small_plain_cover_shows_as_a_small_candidate_with_sides_unseen():
 def test_the_last_pass_finds_a_small_book():
     # build/t1c scene 13's book 3: a 10 mm book of the desk's own texture at the far side,
     # found from a small candidate with sides unseen, and by nothing else
-    sc, r = _table1_scene(3, 13)
+    sc, r = dataset_scene("table1", 3, 13)
     book = r.truth["books"][3]
     cfg = DetectConfig()
     off = replace(cfg, segment=replace(cfg.segment, small_open=False))
@@ -150,7 +142,7 @@ def test_a_piece_of_a_cover_from_the_last_pass_does_not_keep_the_cover_short():
     # last pass finds the rest (57 x 93 mm). Left there, it kept the height map's grow from
     # taking the cover to its end (31 mm off); dropped after the extent step as narrower
     # than small_open_min_side, it does not
-    sc, r = _table1_scene(1, 67)
+    sc, r = dataset_scene("table1", 1, 67)
     book = r.truth["books"][1]
     res = Detector(sc.rig, DetectConfig()).detect(r.left, r.right)
     near = min(res.objects, key=lambda o: np.linalg.norm(o.pose.center - book["center"]))

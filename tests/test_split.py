@@ -20,6 +20,7 @@ from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
 
 from conftest import ideal_images
+from dataset_scene import dataset_scene
 
 YAW = 250.0  # the taller book the farther: its page block's face shows at the seam
 LENGTHS = (0.14, 0.16)  # m, along the seam's normal; both 0.13 m wide
@@ -292,10 +293,7 @@ def test_the_pipeline_splits_a_union_switched_on_only():
     # Table I's scene 6 (rovis synth --protocol table1 --seed 1): two light plain books,
     # 4.2 and 3.1 cm high, flush along a side of nearly one width; the closed loop takes
     # their outline for one cover
-    from rovis.synth.dataset import dataset_scenes
-
-    sc = next(s for k, s in dataset_scenes("table1", 7, seed=1) if k == 6)
-    r = render(sc, np.random.default_rng([1, 9, 6]))
+    sc, r = dataset_scene("table1", 1, 6)
     a, b = (r.truth["books"][i] for i in (0, 2))
 
     def nearest(res, book):
@@ -305,15 +303,6 @@ def test_the_pipeline_splits_a_union_switched_on_only():
     off = Detector(sc.rig, DetectConfig(split=SplitConfig(enabled=False))).detect(r.left, r.right)
     assert nearest(on, a) < 0.01 and nearest(on, b) < 0.01  # m
     assert nearest(off, a) > 0.03 and nearest(off, b) > 0.03  # the union's centre between
-
-
-def _table1_scene(seed: int, scene: int) -> tuple[Any, Any]:
-    """Scene ``scene`` of ``rovis synth --protocol table1 --seed SEED`` (build/t1b's for seed
-    2, build/t1c's for 3), rendered as that command does: the scene and its rendering."""
-    from rovis.synth.dataset import dataset_scenes
-
-    sc = next(s for k, s in dataset_scenes("table1", scene + 1, seed=seed) if k == scene)
-    return sc, render(sc, np.random.default_rng([seed, 9, scene]))
 
 
 def _nearest(result: Any, book: dict[str, Any]) -> float:
@@ -328,7 +317,7 @@ def test_the_pipeline_splits_where_the_side_facing_the_camera_jogs(seed, scene, 
     # only the side facing the camera jogs (2.35 and 2.97 px). build/t1c's scene 27
     # (--seed 3): a 0.9 cm plain book and a 1.5 cm photo one; the side away from the
     # camera jogs more, but near a corner, and the side facing it at the seam.
-    sc, r = _table1_scene(seed, scene)
+    sc, r = dataset_scene("table1", seed, scene)
     books = [r.truth["books"][i] for i in pair]
     on = Detector(sc.rig).detect(r.left, r.right)
     off = Detector(sc.rig, DetectConfig(split=SplitConfig(jog_facing=False))).detect(
@@ -345,7 +334,7 @@ def test_a_jog_at_a_faint_seam_line_splits(tmp_path):
     # rendered the left image's seam line steps along 23 % only and the union stays whole
     from rovis.calib import load_calibration, save_calibration
 
-    sc, r = _table1_scene(3, 1)
+    sc, r = dataset_scene("table1", 3, 1)
     save_calibration(sc.rig, tmp_path / "calib.yaml")
     rig = load_calibration(tmp_path / "calib.yaml")
     books = [r.truth["books"][i] for i in (1, 2)]
@@ -424,10 +413,7 @@ def test_the_pipeline_joins_a_cover_cut_at_its_band_switched_on_only():
     # Table I's scene 29 (rovis synth --protocol table1 --seed 1): a 0.8 cm printed
     # book, 22 x 14.6 cm, with a light band across it; the closed loop finds the parts
     # either side of the band's edge as two covers
-    from rovis.synth.dataset import dataset_scenes
-
-    sc = next(s for k, s in dataset_scenes("table1", 30, seed=1) if k == 29)
-    r = render(sc, np.random.default_rng([1, 9, 29]))
+    sc, r = dataset_scene("table1", 1, 29)
     book = r.truth["books"][2]
 
     def near(res):

@@ -14,6 +14,8 @@ from rovis.stereo import StereoConfig, find_in_other_view, match_quads, rectangl
 from rovis.synth import render, sample_scene
 from rovis.trim import TrimConfig
 
+from dataset_scene import dataset_scene
+
 
 @pytest.fixture(scope="module")
 def scene():
@@ -414,14 +416,6 @@ def test_a_cover_is_found_in_the_other_image_with_one_side_along_the_epipolar_li
     assert np.mean(excused) >= 0.6  # (6 of 8 when written)
 
 
-def _table2_scene(i: int):
-    """Scene ``i`` of ``rovis synth --protocol table2 --seed 1``, rendered as it renders it."""
-    from rovis.synth.dataset import dataset_scenes
-
-    sc = next(s for k, s in dataset_scenes("table2", i + 1, seed=1) if k == i)
-    return sc, render(sc, np.random.default_rng([1, 9, i]))
-
-
 def _false_books(res, truth):
     """The detections whose centre lies 5 cm or more from every true book's."""
     centres = np.array([b["center"][:2] for b in truth["books"]])
@@ -432,7 +426,7 @@ def _false_books(res, truth):
 def test_a_cover_over_a_segmented_one_is_dropped():
     # build/t2 scene 56: the candidate pool made a false 294 x 141 mm "book" over a book
     # both segmentations found (22 % of the smaller quad); dropped, and reported so
-    sc, r = _table2_scene(56)
+    sc, r = dataset_scene("table2", 1, 56)
     res = Detector(sc.rig).detect(r.left, r.right)
     assert _false_books(res, r.truth) == []
     assert any(why == "overlaps" for why, _, _ in res.dropped)
@@ -478,7 +472,7 @@ def test_a_cover_tilted_by_one_images_cover_edge_step_is_refit_without_it():
     # Refined without that search in one image, the pair is flat. (Scene 36's, the same
     # book, was the case before the renderer filled its faces exactly; there the book is
     # now lost: the right image's closed loop settles at T_H 96 instead of 30.)
-    sc, r = _table2_scene(38)
+    sc, r = dataset_scene("table2", 1, 38)
     book = r.truth["books"][2]
     assert book["cover"] == "light"
 
@@ -512,7 +506,7 @@ def test_a_plain_cover_showing_two_sides_is_found_by_stereo_among_two_sided_cand
     # brightness: two sides seen, no quad of three or four in either image.
     from rovis.segment import SegmentConfig
 
-    sc, r = _table2_scene(18)
+    sc, r = dataset_scene("table2", 1, 18)
     book = r.truth["books"][3]
     assert book["cover"] == "plain"
 
@@ -541,7 +535,7 @@ def test_a_cover_seen_on_two_sides_is_completed_in_3d():
     # adjacent sides seen in each image. Each image closes the other two where its own
     # edges end, a few pixels apart: refined there, the pair is no flat cover. Its unseen sides placed in 3D from its seen ones
     # (rovis.extent.complete_open), it is found to grasping accuracy.
-    sc, r = _table2_scene(21)
+    sc, r = dataset_scene("table2", 1, 21)
     book = r.truth["books"][1]
     assert book["cover"] == "plain"
 
@@ -563,7 +557,7 @@ def test_one_of_two_plain_books_end_to_end_is_found_from_one_images_candidate():
     # first, refined, ends on the step where the widths differ (its end side seen along
     # about 40 % of it); looked for in the right image with that side excused, it is the
     # book. (A pixel or two of its other end's blur puts it ~12 mm low: noticed, left.)
-    sc, r = _table2_scene(12)
+    sc, r = dataset_scene("table2", 1, 12)
     book = r.truth["books"][0]
     assert book["cover"] == "plain"
 
@@ -583,7 +577,7 @@ def test_desk_between_found_books_is_no_book(monkeypatch):
     # height). Two sides on found books' outlines (cover and page block) mark it.
     import rovis.pipeline as pl
 
-    sc, r = _table2_scene(44)
+    sc, r = dataset_scene("table2", 1, 44)
     gap = np.array([0.648, 0.279])  # where it was reported, 7-8 mm up
 
     def near_gap(**settings) -> int:
@@ -618,10 +612,7 @@ def test_a_cover_a_pixel_off_at_each_corner_is_refit_flat():
     # put two corners 10 mm lower than the others: a side on the desk, dropped, and a
     # wrong pair of candidates 5 cm high took its place. Refit as one rectangle parallel
     # to the desk, the pair is the book.
-    from rovis.synth.dataset import dataset_scenes
-
-    sc = next(s for k, s in dataset_scenes("table1", 15, seed=1) if k == 14)
-    r = render(sc, np.random.default_rng([1, 9, 14]))
+    sc, r = dataset_scene("table1", 1, 14)
     book = r.truth["books"][0]
 
     def nearest(flat_refit_px: float) -> float:
@@ -639,7 +630,7 @@ def test_a_side_on_the_shadows_edge_is_left_out_of_the_flat_refit(sides):
     # cover, and the pair came out tilted (corner heights 50, -25, -15 and 49 mm). Fitted
     # flat to its sides with that one left out, the book is within 3 mm of its height;
     # without, the one-image search placed it 8 mm low
-    sc, r = _table2_scene(10)
+    sc, r = dataset_scene("table2", 1, 10)
     settings = [] if sides else ["flat_refit_sides=0"]
     res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
     truth = r.truth["books"][3]
