@@ -408,7 +408,7 @@ class Detector:
                    if (self.cfg.sweep.check or self.cfg.sweep.transfer) and desk_plane is not None
                    else None)
         books = [self._reconstruct_or_why(rig, pair, desk_plane, texture) for pair in pairs]
-        books = self._with_flat_refits(rig, books, desk_plane, texture)
+        books = self._with_flat_refits(rig, books, desk_plane, texture, sides=False)
         if self.cfg.stereo.alternatives:
             # beyond the paper: a pair that is no cover may be one with the other quads the
             # closed loop found over its quads (Segmentation.alternatives)
@@ -417,6 +417,10 @@ class Detector:
                     others = [p.left for p, b, _ in books if b is not None]
                     books[i] = self._alternative(rig, segs, grads, ideal, mt, pair, why,
                                                  desk_plane, texture, others)
+        # beyond the paper: a pair still tilted (its alternatives tried first: the other
+        # quads may be the cover where this pair's are a frame printed inside it), fitted
+        # flat to its sides with one image's side left out
+        books = self._with_flat_refits(rig, books, desk_plane, texture, corners=False)
         lap("pose")
         if self.cfg.stereo.transfer:
             # A matched pair that is no flat cover often pairs a cover in one image with its
@@ -1939,21 +1943,24 @@ class Detector:
     def _with_flat_refits(self, rig: StereoRig,
                           books: list[tuple[Pair, BookDetection | None, str]],
                           desk_plane: NDArray[np.float64] | None,
-                          texture: dict[str, NDArray[np.float32]] | None,
+                          texture: dict[str, NDArray[np.float32]] | None, *,
+                          corners: bool = True, sides: bool = True,
                           ) -> list[tuple[Pair, BookDetection | None, str]]:
         """``books`` (pair, book or None, why) with each pair that came out tilted or with
         a side on the desk replaced by its flat refit where that makes a book
-        (:meth:`_flat_refit`; beyond the paper: a cover whose corners are each a pixel off
-        in a different way comes out so, a pixel of disparity being a centimetre of
-        height)."""
+        (:meth:`_flat_refit`, to its ``corners`` and/or ``sides``; beyond the paper: a cover
+        whose corners are each a pixel off in a different way comes out so, a pixel of
+        disparity being a centimetre of height)."""
         if self.cfg.flat_refit_px <= 0 or desk_plane is None:
             return books
-        return [(self._flat_refit(rig, pair, desk_plane, texture) or (pair, book, why))
+        return [(self._flat_refit(rig, pair, desk_plane, texture, corners=corners, sides=sides)
+                 or (pair, book, why))
                 if book is None and why in ("tilted", "side on desk") else (pair, book, why)
                 for pair, book, why in books]
 
     def _flat_refit(self, rig: StereoRig, pair: Pair, desk_plane: NDArray[np.float64],
-                    texture: dict[str, NDArray[np.float32]] | None,
+                    texture: dict[str, NDArray[np.float32]] | None, *,
+                    corners: bool = True, sides: bool = True,
                     ) -> tuple[Pair, BookDetection, str] | None:
         """The pair as one rectangle parallel to the desk (:meth:`_flat_fit`), or None
         (for a pair that came out tilted or with a side on the desk, and the candidate
@@ -1966,8 +1973,10 @@ class Detector:
         pair fitted flat, or else reconstructed as it is (one free rectangle); where
         neither makes a book, the pair as it came is fitted flat; where that misses, it is
         fitted to its sides with one image's side left out (:meth:`_side_fit`,
-        ``flat_refit_sides``)."""
-        if self.cfg.facing.block_sides:
+        ``flat_refit_sides``). ``corners`` and ``sides`` turn the fits to the corners (the
+        first two) and to the sides (the last) on or off."""
+        out: tuple[Pair, BookDetection, str] | None = None
+        if corners and self.cfg.facing.block_sides:
             settled = settle_block_sides({"left": pair.left, "right": pair.right},
                                          {"left": rig.Q_L, "right": rig.Q_R}, desk_plane,
                                          self.cfg.facing)
@@ -1979,8 +1988,9 @@ class Detector:
                     out = trial if trial[1] is not None else None
                 if out is not None:
                     return out
-        out = self._flat_fit(rig, pair, desk_plane, texture)
-        if out is None and self.cfg.flat_refit_sides > 0:
+        if corners:
+            out = self._flat_fit(rig, pair, desk_plane, texture)
+        if out is None and sides and self.cfg.flat_refit_sides > 0:
             out = self._side_fit(rig, pair, desk_plane, texture)
         return out
 
