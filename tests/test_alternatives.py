@@ -20,6 +20,7 @@ from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
 
 from conftest import ideal_images
+from test_triangulation import _side_moved_out
 
 THICKNESS = 0.03
 
@@ -151,6 +152,55 @@ def test_the_outline_pair_fitted_to_its_sides_gives_the_cover(book, monkeypatch)
     assert len(res.objects) == 1
     got = np.asarray(res.objects[0].corners_world)
     assert np.linalg.norm(got[:, None] - P[None], axis=2).min(axis=1).max() < 0.003  # m
+
+
+def test_the_alternatives_come_before_the_side_fit(book, monkeypatch):
+    # the same stub with the side fit on: the alternative (the cover) is taken, and the
+    # side fit is not asked for the pair; with the alternatives off, it is
+    import rovis.pipeline as pipeline
+    P, ideal, grads, desk, rig, (raw_left, raw_right) = book
+    cover = _covers(P, grads, rig)
+    segs = {"left": _segmentation(_outline(P, rig), [cover["left"]]),
+            "right": _segmentation(cover["right"], [])}
+    calls: list[str] = []
+    fits: list[Pair] = []
+
+    def fake_segment(gray, grad, method, *, controller, cfg, timing):
+        calls.append("left" if len(calls) % 2 == 0 else "right")
+        return segs[calls[-1]]
+
+    side_fit = Detector._side_fit
+
+    def counted(self, rig_, pair, *args):
+        fits.append(pair)
+        return side_fit(self, rig_, pair, *args)
+
+    monkeypatch.setattr(pipeline, "segment", fake_segment)
+    monkeypatch.setattr(Detector, "_side_fit", counted)
+    off = ["stereo.transfer=false", "extent.grow=false", "extent.shrink=false", "full_view=false"]
+    res = Detector(rig, with_settings(DetectConfig(), off)).detect(raw_left, raw_right)
+    assert len(res.objects) == 1 and fits == []
+    res = Detector(rig, with_settings(DetectConfig(), off + ["stereo.alternatives=false"])
+                   ).detect(raw_left, raw_right)
+    assert len(res.objects) == 1 and len(fits) == 1
+
+
+@pytest.mark.parametrize("out_px, fits", [(3.0, True), (1.5, False)])
+def test_the_side_left_out_must_lie_clear_of_the_fit(book, out_px, fits):
+    # the right image's side facing its right-hand neighbour moved out: 3 px is fitted
+    # (the left-out side more than twice flat_refit_px outside), 1.5 px is not
+    P, _, _, desk, rig, _ = book
+    left, right = geometry.project(rig.Q_L, P), geometry.project(rig.Q_R, P)
+    d = np.roll(right, -1, axis=0) - right
+    s = int(np.argmax(np.abs(d[:, 1]) / np.linalg.norm(d, axis=1)))  # across the baseline
+    pair = Pair(left, _side_moved_out(right, s, out_px), 1.0, 0.0)
+    det = Detector(rig)
+    if fits:
+        assert det._reconstruct_or_why(rig, pair, desk)[2] == "tilted"
+    got = det._side_fit(rig, pair, desk, None)
+    assert (got is not None) == fits
+    if fits:
+        assert np.abs(np.asarray(got[1].corners_world) - P).max() < 0.001  # m
 
 
 def test_a_cover_from_the_alternatives_must_stand_above_the_desk(book):

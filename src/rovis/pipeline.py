@@ -129,13 +129,15 @@ class DetectConfig:
         Pixels; 0 turns it off (and ``flat_refit_sides`` with it). A stereo pair that comes
         out tilted or with a side on the desk is refit as one rectangle parallel to the
         desk, kept where every corner of both images lies within this of it (beyond the
-        paper; needs the desk plane).
+        paper; needs the desk plane). Twice this is also the margin ``flat_refit_sides``
+        asks of the side it leaves out.
     flat_refit_sides : float
         Pixels; 0 turns it off. Where that refit misses, the rectangle is fitted to the
         pair's sides instead of its corners, one image's side left out: one that lies
         outside the fit by more than twice ``flat_refit_px`` (a page block's foot, the soft
         edge of the cover's shadow), the other seven sides within this of it
-        (:meth:`Detector._side_fit`; beyond the paper).
+        (:meth:`Detector._side_fit`; beyond the paper). A segmentation pair gets it only
+        after its alternatives (``stereo.alternatives``) made no book.
     unskew_deg, unskew_height : float
         Degrees (0 turns it off), metres. A cover whose corners make an angle further than
         ``unskew_deg`` from 90° has a side on a line of its print or a neighbour's edge:
@@ -420,7 +422,7 @@ class Detector:
         # beyond the paper: a pair still tilted (its alternatives tried first: the other
         # quads may be the cover where this pair's are a frame printed inside it), fitted
         # flat to its sides with one image's side left out
-        books = self._with_flat_refits(rig, books, desk_plane, texture, corners=False)
+        books = self._with_side_fits(rig, books, desk_plane, texture)
         lap("pose")
         if self.cfg.stereo.transfer:
             # A matched pair that is no flat cover often pairs a cover in one image with its
@@ -1944,19 +1946,41 @@ class Detector:
                           books: list[tuple[Pair, BookDetection | None, str]],
                           desk_plane: NDArray[np.float64] | None,
                           texture: dict[str, NDArray[np.float32]] | None, *,
-                          corners: bool = True, sides: bool = True,
+                          sides: bool = True,
                           ) -> list[tuple[Pair, BookDetection | None, str]]:
         """``books`` (pair, book or None, why) with each pair that came out tilted or with
         a side on the desk replaced by its flat refit where that makes a book
-        (:meth:`_flat_refit`, to its ``corners`` and/or ``sides``; beyond the paper: a cover
-        whose corners are each a pixel off in a different way comes out so, a pixel of
-        disparity being a centimetre of height)."""
+        (:meth:`_flat_refit`, with or without the fit to its ``sides``; beyond the paper: a
+        cover whose corners are each a pixel off in a different way comes out so, a pixel
+        of disparity being a centimetre of height)."""
         if self.cfg.flat_refit_px <= 0 or desk_plane is None:
             return books
-        return [(self._flat_refit(rig, pair, desk_plane, texture, corners=corners, sides=sides)
+        return [(self._flat_refit(rig, pair, desk_plane, texture, sides=sides)
                  or (pair, book, why))
                 if book is None and why in ("tilted", "side on desk") else (pair, book, why)
                 for pair, book, why in books]
+
+    def _with_side_fits(self, rig: StereoRig,
+                        books: list[tuple[Pair, BookDetection | None, str]],
+                        desk_plane: NDArray[np.float64] | None,
+                        texture: dict[str, NDArray[np.float32]] | None,
+                        ) -> list[tuple[Pair, BookDetection | None, str]]:
+        """``books`` with each pair still tilted or with a side on the desk fitted to its
+        sides (:meth:`_side_fit`), where that makes a book over no book found (its left
+        quad overlapping none by more than ``stereo.transfer_max_overlap``: the
+        alternatives ran before it and skipped what overlaps a book)."""
+        if self.cfg.flat_refit_px <= 0 or self.cfg.flat_refit_sides <= 0 or desk_plane is None:
+            return books
+        overlap = self.cfg.stereo.transfer_max_overlap
+        out = list(books)
+        for k, (pair, book, why) in enumerate(books):
+            if book is not None or why not in ("tilted", "side on desk"):
+                continue
+            fit = self._flat_refit(rig, pair, desk_plane, texture, corners=False)
+            if fit is not None and not any(quad_overlap(fit[0].left, p.left) > overlap
+                                           for p, b, _ in out if b is not None):
+                out[k] = fit
+        return out
 
     def _flat_refit(self, rig: StereoRig, pair: Pair, desk_plane: NDArray[np.float64],
                     texture: dict[str, NDArray[np.float32]] | None, *,
@@ -1973,8 +1997,9 @@ class Detector:
         pair fitted flat, or else reconstructed as it is (one free rectangle); where
         neither makes a book, the pair as it came is fitted flat; where that misses, it is
         fitted to its sides with one image's side left out (:meth:`_side_fit`,
-        ``flat_refit_sides``). ``corners`` and ``sides`` turn the fits to the corners (the
-        first two) and to the sides (the last) on or off."""
+        ``flat_refit_sides``). ``corners`` turns the first two (the settled pair, fitted
+        flat or reconstructed, and the pair fitted flat to its corners) on or off,
+        ``sides`` the last."""
         out: tuple[Pair, BookDetection, str] | None = None
         if corners and self.cfg.facing.block_sides:
             settled = settle_block_sides({"left": pair.left, "right": pair.right},
