@@ -103,12 +103,14 @@ def test_an_alternative_overlapping_a_book_already_found_is_not_tried(book):
     assert found is None and why == "tilted"
 
 
-def test_detect_retries_a_tilted_pair_and_finds_the_book_only_with_alternatives(book, monkeypatch):
-    # the segmentation stubbed: the left image's quad is the outline, the cover only its
-    # alternative; with the one-image search, the extent step and the side fit off, only
-    # the retry can find the book
+def _stub_outline_pair(book, monkeypatch) -> list[str]:
+    """``detect``'s segmentation stubbed for ``book``: the left image's quad is the
+    outline (:func:`_outline`), the cover only its alternative; the right image's is the
+    cover. Returns the settings that leave the pair to the steps under test (the one-image
+    search and the extent step off; full_view off: the stub's quads are in the rig's own
+    ideal pixels)."""
     import rovis.pipeline as pipeline
-    P, ideal, grads, desk, rig, (raw_left, raw_right) = book
+    P, _, grads, _, rig, _ = book
     cover = _covers(P, grads, rig)
     segs = {"left": _segmentation(_outline(P, rig), [cover["left"]]),
             "right": _segmentation(cover["right"], [])}
@@ -119,9 +121,16 @@ def test_detect_retries_a_tilted_pair_and_finds_the_book_only_with_alternatives(
         return segs[calls[-1]]
 
     monkeypatch.setattr(pipeline, "segment", fake_segment)
-    # full_view off: the stub's quads are in the rig's own ideal pixels
-    off = ["stereo.transfer=false", "extent.grow=false", "extent.shrink=false", "full_view=false",
-           "flat_refit_sides=0"]
+    return ["stereo.transfer=false", "extent.grow=false", "extent.shrink=false",
+            "full_view=false"]
+
+
+def test_detect_retries_a_tilted_pair_and_finds_the_book_only_with_alternatives(book, monkeypatch):
+    # the segmentation stubbed: the left image's quad is the outline, the cover only its
+    # alternative; with the one-image search, the extent step and the side fit off, only
+    # the retry can find the book
+    P, _, _, _, rig, (raw_left, raw_right) = book
+    off = _stub_outline_pair(book, monkeypatch) + ["flat_refit_sides=0"]
     on = Detector(rig, with_settings(DetectConfig(), off)).detect(raw_left, raw_right)
     without = Detector(rig, with_settings(DetectConfig(), off + ["stereo.alternatives=false"])
                        ).detect(raw_left, raw_right)
@@ -134,20 +143,8 @@ def test_the_outline_pair_fitted_to_its_sides_gives_the_cover(book, monkeypatch)
     # the same stub, the retry off: the outline's right-hand side (8 px out, as if on the
     # page block's foot) lies outside the cover in the left image only, so the flat fit to
     # the pair's sides with that side left out is the cover (fit_rectangle_sides)
-    import rovis.pipeline as pipeline
-    P, ideal, grads, desk, rig, (raw_left, raw_right) = book
-    cover = _covers(P, grads, rig)
-    segs = {"left": _segmentation(_outline(P, rig), [cover["left"]]),
-            "right": _segmentation(cover["right"], [])}
-    calls: list[str] = []
-
-    def fake_segment(gray, grad, method, *, controller, cfg, timing):
-        calls.append("left" if len(calls) % 2 == 0 else "right")
-        return segs[calls[-1]]
-
-    monkeypatch.setattr(pipeline, "segment", fake_segment)
-    off = ["stereo.transfer=false", "extent.grow=false", "extent.shrink=false", "full_view=false",
-           "stereo.alternatives=false"]
+    P, _, _, _, rig, (raw_left, raw_right) = book
+    off = _stub_outline_pair(book, monkeypatch) + ["stereo.alternatives=false"]
     res = Detector(rig, with_settings(DetectConfig(), off)).detect(raw_left, raw_right)
     assert len(res.objects) == 1
     got = np.asarray(res.objects[0].corners_world)
@@ -157,27 +154,16 @@ def test_the_outline_pair_fitted_to_its_sides_gives_the_cover(book, monkeypatch)
 def test_the_alternatives_come_before_the_side_fit(book, monkeypatch):
     # the same stub with the side fit on: the alternative (the cover) is taken, and the
     # side fit is not asked for the pair; with the alternatives off, it is
-    import rovis.pipeline as pipeline
-    P, ideal, grads, desk, rig, (raw_left, raw_right) = book
-    cover = _covers(P, grads, rig)
-    segs = {"left": _segmentation(_outline(P, rig), [cover["left"]]),
-            "right": _segmentation(cover["right"], [])}
-    calls: list[str] = []
+    P, _, _, _, rig, (raw_left, raw_right) = book
+    off = _stub_outline_pair(book, monkeypatch)
     fits: list[Pair] = []
-
-    def fake_segment(gray, grad, method, *, controller, cfg, timing):
-        calls.append("left" if len(calls) % 2 == 0 else "right")
-        return segs[calls[-1]]
-
     side_fit = Detector._side_fit
 
     def counted(self, rig_, pair, *args):
         fits.append(pair)
         return side_fit(self, rig_, pair, *args)
 
-    monkeypatch.setattr(pipeline, "segment", fake_segment)
     monkeypatch.setattr(Detector, "_side_fit", counted)
-    off = ["stereo.transfer=false", "extent.grow=false", "extent.shrink=false", "full_view=false"]
     res = Detector(rig, with_settings(DetectConfig(), off)).detect(raw_left, raw_right)
     assert len(res.objects) == 1 and fits == []
     res = Detector(rig, with_settings(DetectConfig(), off + ["stereo.alternatives=false"])
@@ -187,8 +173,9 @@ def test_the_alternatives_come_before_the_side_fit(book, monkeypatch):
 
 @pytest.mark.parametrize("out_px, fits", [(3.0, True), (1.5, False)])
 def test_the_side_left_out_must_lie_clear_of_the_fit(book, out_px, fits):
-    # the right image's side facing its right-hand neighbour moved out: 3 px is fitted
-    # (the left-out side more than twice flat_refit_px outside), 1.5 px is not
+    # the right image's side running most nearly across the epipolar lines moved out:
+    # 3 px is fitted (the left-out side more than twice flat_refit_px outside), 1.5 px
+    # is not
     P, _, _, desk, rig, _ = book
     left, right = geometry.project(rig.Q_L, P), geometry.project(rig.Q_R, P)
     d = np.roll(right, -1, axis=0) - right
