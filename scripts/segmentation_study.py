@@ -7,6 +7,7 @@ are within 3 px; recall is over books whose cover is >= 90 % visible. Prints a M
 
     python scripts/segmentation_study.py --n 40 --seed 100 [--methods closed+,open]
     python scripts/segmentation_study.py --n 40 --seed 100 --methods closed+ --refine-gamma 2.2
+    python scripts/segmentation_study.py --n 40 --seed 100 --methods closed+ --set n_max=200
 
 ``closed-`` is eq. 2 with e^{-N/N_max} (the text's intent), ``closed+`` as printed
 (e^{+N/N_max}, rovis's default: it finds more books in 3D, docs/segmentation.md).
@@ -21,7 +22,7 @@ from collections import defaultdict
 import cv2
 import numpy as np
 
-from rovis.pipeline import roi_mask
+from rovis.pipeline import DetectConfig, roi_mask, with_settings
 from rovis.segment import SegmentConfig, gradients
 from rovis.segment.methods import segment
 from rovis.segment.quads import order_corners
@@ -33,6 +34,15 @@ METHODS = {"closed-": ("closed", -1), "closed+": ("closed", +1), "open": ("open"
            "lsd": ("lsd", -1), "contour": ("contour", -1)}
 
 
+def segment_config(sign: int, refine_gamma: float, settings: list[str]) -> SegmentConfig:
+    """The SegmentConfig a method runs with: eq. 2's sign, the refinement's gamma, then
+    ``settings`` (``NAME=VALUE``, fields of SegmentConfig, as ``rovis eval --set
+    segment.NAME=VALUE`` reads them; ValueError names a wrong one)."""
+    seg = SegmentConfig(quality_sign=sign, refine_gamma=refine_gamma)
+    cfg = with_settings(DetectConfig(segment=seg), [f"segment.{s}" for s in settings])
+    return cfg.segment
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=24)
@@ -41,8 +51,16 @@ def main() -> None:
     ap.add_argument("--refine-gamma", type=float, default=1.0,
                     help="SegmentConfig.refine_gamma: the gamma undone for sub-pixel refinement "
                          "(default: %(default)s, none)")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help="a SegmentConfig field for every method, e.g. n_max=200 or "
+                         "quads.min_support=0.6 (repeatable; as rovis eval --set segment.NAME)")
     args = ap.parse_args()
     methods = {m: METHODS[m] for m in args.methods.split(",")}
+    try:
+        configs = {m: segment_config(sign, args.refine_gamma, args.set)
+                   for m, (_, sign) in methods.items()}
+    except ValueError as e:
+        ap.error(str(e))
     cv2.setNumThreads(1)
     stats: dict[tuple[str, int], dict[str, list]] = defaultdict(lambda: defaultdict(list))
     for i in range(args.n):
@@ -58,10 +76,9 @@ def main() -> None:
             h = np.array(b["corners"]) @ rig.Q_L[:, :3].T + rig.Q_L[:, 3]
             truth.append((order_corners(h[:, :2] / h[:, 2:]), b["visible_left"] >= 0.9))
         band = next(k for k, (lo, hi) in enumerate(BANDS) if r.truth["lux"] < hi or k == len(BANDS) - 1)
-        for name, (method, sign) in methods.items():
+        for name, (method, _) in methods.items():
             t0 = time.perf_counter()
-            seg = segment(ideal, grad, method, cfg=SegmentConfig(quality_sign=sign,
-                                                                 refine_gamma=args.refine_gamma))
+            seg = segment(ideal, grad, method, cfg=configs[name])
             st = stats[(name, band)]
             st["ms"].append(1e3 * (time.perf_counter() - t0))
             used = set()
@@ -75,7 +92,8 @@ def main() -> None:
                 if visible:
                     st["found"].append(ok)
             st["fp"].append(len(seg.corners) - len(used))
-    print(f"{args.n} scenes, seeds {args.seed}-{args.seed + args.n - 1}\n")
+    print(f"{args.n} scenes, seeds {args.seed}-{args.seed + args.n - 1}"
+          + (f"; --set {' '.join(args.set)}" if args.set else "") + "\n")
     print("| method | lux | books | recall | median corner error [px] | false quads / image | median time [ms] |")
     print("|---|---|---|---|---|---|---|")
     for name in methods:

@@ -1,0 +1,33 @@
+"""scripts/segmentation_study.py: its --set reaches the SegmentConfig each method runs with."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+from rovis.segment import SegmentConfig
+
+_spec = importlib.util.spec_from_file_location(
+    "segmentation_study", Path(__file__).parents[1] / "scripts" / "segmentation_study.py")
+assert _spec is not None and _spec.loader is not None
+study = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(study)
+
+
+def test_settings_reach_the_segment_config():
+    cfg = study.segment_config(-1, 2.2, ["n_max=200", "quads.min_support=0.6"])
+    assert cfg.n_max == 200 and cfg.quads.min_support == 0.6
+    # the method's own sign and the gamma stay
+    assert cfg.quality_sign == -1 and cfg.refine_gamma == 2.2
+
+
+def test_no_settings_is_the_methods_config():
+    assert study.segment_config(+1, 1.0, []) == SegmentConfig(quality_sign=+1)
+
+
+@pytest.mark.parametrize("setting", ["bogus=1", "n_max=abc", "n_max"])
+def test_a_wrong_setting_is_refused(setting):
+    with pytest.raises(ValueError):
+        study.segment_config(+1, 1.0, [setting])
