@@ -21,6 +21,8 @@ from rovis.synth.textures import CoverSpec
 from rovis.trim import (TrimConfig, _foot_offset, cut_cover, grow_run, height_profile,
                         map_height, print_grow, trim_side)
 
+from dataset_scene import dataset_scene
+
 CFG = TrimConfig()
 H = 0.03  # metres, the cover's height in the profile tests
 
@@ -415,6 +417,31 @@ def test_grow_run_ends_where_the_map_leaves_the_cover_height():
     # ...and a longer unknown stretch (20 mm, over max_gap's 15) ends it
     height[:, 165:185] = np.nan
     assert grow_run(P, 1, 0.02, [(hm, Q)]) == pytest.approx(0.015, abs=0.0051)
+
+
+@pytest.mark.parametrize("scene,book,reach", [
+    (48, 2, "trim.print_reach"),  # 101 x 117 mm found; its print goes on 110 mm
+    (76, 1, "trim.grow_reach"),  # 217 x 86 mm found; the maps read its height 118 mm on
+])
+def test_a_photo_cover_cut_more_than_9_cm_short_is_grown_to_its_edge(scene, book, reach):
+    # `python scripts/results.py`'s table1 scenes 48 and 76 (rovis synth --protocol table1
+    # --seed 1): a photo cover found cut at a band of its print, 11-12 cm from its far
+    # edge, is grown there only with a reach beyond 9 cm (the default before stop 47)
+    sc, r = dataset_scene("table1", 1, scene)
+    truth = r.truth["books"][book]
+    true_size = np.sort(truth["size"][:2])
+
+    def nearest(settings: list[str]) -> tuple[float, np.ndarray]:
+        res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
+        off = [np.linalg.norm(o.pose.center - truth["center"]) for o in res.objects]
+        return min(off), np.sort(res.objects[int(np.argmin(off))].pose.size[:2])
+
+    off, size = nearest([])
+    assert off < 0.01  # m
+    # (scene 48's width is 16 mm short, scene 76's length 11 mm long: a side at its foot)
+    assert np.abs(size - true_size).max() < 0.02  # m
+    off, size = nearest([f"{reach}=0.09"])
+    assert off > 0.05 and np.abs(size - true_size).max() > 0.1  # the piece: no match
 
 
 def test_bad_settings_are_refused():
