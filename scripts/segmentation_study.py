@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import time
 from collections import defaultdict
+from collections.abc import Sequence
 
 import cv2
 import numpy as np
@@ -34,16 +35,36 @@ METHODS = {"closed-": ("closed", -1), "closed+": ("closed", +1), "open": ("open"
            "lsd": ("lsd", -1), "contour": ("contour", -1)}
 
 
-def segment_config(sign: int, refine_gamma: float, settings: list[str]) -> SegmentConfig:
+# set otherwise than by --set: the sign by each method, the gamma by --refine-gamma
+OWN = {"quality_sign": "each method sets it (closed- / closed+)",
+       "refine_gamma": "--refine-gamma sets it"}
+
+
+def segment_config(sign: int, refine_gamma: float, settings: Sequence[str]) -> SegmentConfig:
     """The SegmentConfig a method runs with: eq. 2's sign, the refinement's gamma, then
     ``settings`` (``NAME=VALUE``, fields of SegmentConfig, as ``rovis eval --set
-    segment.NAME=VALUE`` reads them; ValueError names a wrong one)."""
+    segment.NAME=VALUE`` reads them).
+
+    Raises
+    ------
+    ValueError
+        A setting that is no field, a value of the wrong type, or one of :data:`OWN`
+        (each method's sign, ``--refine-gamma``), naming it as given.
+    """
+    for item in settings:
+        name = item.partition("=")[0].strip()
+        if name in OWN:
+            raise ValueError(f"--set {item}: not here, {OWN[name]}")
     seg = SegmentConfig(quality_sign=sign, refine_gamma=refine_gamma)
-    cfg = with_settings(DetectConfig(segment=seg), [f"segment.{s}" for s in settings])
+    try:
+        cfg = with_settings(DetectConfig(segment=seg), [f"segment.{s}" for s in settings])
+    except ValueError as e:  # (the names as given, not with_settings' segment.NAME)
+        raise ValueError(str(e).replace("--set segment.", "--set ")
+                         .replace("--set 'segment.", "--set '")) from None
     return cfg.segment
 
 
-def main() -> None:
+def main(argv: Sequence[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=24)
     ap.add_argument("--seed", type=int, default=100)
@@ -53,8 +74,9 @@ def main() -> None:
                          "(default: %(default)s, none)")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="a SegmentConfig field for every method, e.g. n_max=200 or "
-                         "quads.min_support=0.6 (repeatable; as rovis eval --set segment.NAME)")
-    args = ap.parse_args()
+                         "quads.min_support=0.6 (repeatable; as rovis eval --set segment.NAME; "
+                         "not quality_sign or refine_gamma)")
+    args = ap.parse_args(argv)
     methods = {m: METHODS[m] for m in args.methods.split(",")}
     try:
         configs = {m: segment_config(sign, args.refine_gamma, args.set)
@@ -92,8 +114,10 @@ def main() -> None:
                 if visible:
                     st["found"].append(ok)
             st["fp"].append(len(seg.corners) - len(used))
+    options = [f"--refine-gamma {args.refine_gamma}"] if args.refine_gamma != 1.0 else []
+    options += [f"--set {item}" for item in args.set]
     print(f"{args.n} scenes, seeds {args.seed}-{args.seed + args.n - 1}"
-          + (f"; --set {' '.join(args.set)}" if args.set else "") + "\n")
+          + (f"; {' '.join(options)}" if options else "") + "\n")
     print("| method | lux | books | recall | median corner error [px] | false quads / image | median time [ms] |")
     print("|---|---|---|---|---|---|---|")
     for name in methods:

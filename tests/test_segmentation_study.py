@@ -27,7 +27,21 @@ def test_no_settings_is_the_methods_config():
     assert study.segment_config(+1, 1.0, []) == SegmentConfig(quality_sign=+1)
 
 
-@pytest.mark.parametrize("setting", ["bogus=1", "n_max=abc", "n_max"])
-def test_a_wrong_setting_is_refused(setting):
-    with pytest.raises(ValueError):
+@pytest.mark.parametrize("setting,match", [
+    ("bogus=1", r"--set bogus: no setting 'bogus'"),  # named as given, not segment.bogus
+    ("n_max=abc", r"--set n_max=abc: expected int"),
+    ("n_max", r"--set 'n_max': expected NAME=VALUE"),
+    # each method's sign and --refine-gamma are not overridden behind the table's labels
+    ("quality_sign=-1", r"each method sets it"),
+    ("refine_gamma=2.2", r"--refine-gamma sets it"),
+])
+def test_a_wrong_setting_is_refused(setting, match):
+    with pytest.raises(ValueError, match=match):
         study.segment_config(+1, 1.0, [setting])
+
+
+def test_the_command_line_refuses_a_wrong_setting_with_exit_code_2(capsys):
+    with pytest.raises(SystemExit) as e:
+        study.main(["--n", "1", "--set", "bogus=1"])
+    assert e.value.code == 2
+    assert "no setting 'bogus'" in capsys.readouterr().err

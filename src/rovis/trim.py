@@ -108,7 +108,7 @@ class TrimConfig:
     snap_inward: float = 0.02
     min_score_unseen: float = 0.9
     grow: bool = True
-    grow_reach: float = 0.15  # a photo cover cut at its band 12 cm short (docs/stereo.md)
+    grow_reach: float = 0.15  # scene 76's height 12 cm beyond a band (docs/stereo.md)
     grow_margin: float = -0.005  # the maps carry a cover's height 5-20 mm beyond its edge
     grow_min_same: float = 0.3
     grow_min: float = 0.015  # smaller moves took a shadow's or block's line, measured
@@ -119,7 +119,7 @@ class TrimConfig:
     min_height_share: float = 0.4
     min_height_agree: float = 0.5
     print_grow: bool = True
-    print_reach: float = 0.15  # as grow_reach: 11 cm short at a band, measured
+    print_reach: float = 0.15  # scene 48's print 11 cm beyond a band (docs/stereo.md)
     print_min: float = 0.02  # at 15 mm covers nearly right grew onto their block's foot
     print_near: float = 0.008  # from the side, where past the block's foot (docs/stereo.md)
     print_foot_margin: float = 0.004
