@@ -69,6 +69,11 @@ from rovis.undistort import IdealView
 # whose corners make no rectangle in 3D (with it, one with no corner near a right angle:
 # Detector._unskewed), or a rectangle inside a larger cover, in its plane (a print on it);
 # last, a cover over one both segmentations found (Detector._without_overlaps).
+# A side's grow refused (its strip over another book, on the desk, no foot edge): the
+# grow asked again up to this far short of the refused move, at most GROW_TRIES times in
+# all, for a nearer edge (metres; a farther reach had found only the refused one)
+GROW_RETRY_GAP = 0.005
+GROW_TRIES = 3
 DROP_REASONS = ("degenerate", "too long", "too small", "tilted", "height", "side on desk",
                 "texture height", "skewed", "printed", "overlaps")
 # A frame's pool candidates refined (Detector._from_pool): (camera, index into the pool,
@@ -1565,12 +1570,13 @@ class Detector:
         strength = self._edge_strength(segs)
         extent = replace(self.cfg.extent, min_grow=cfg.grow_min)
 
-        def move(P: NDArray[np.float64], s: int, height: float) -> float:
+        def move(P: NDArray[np.float64], s: int, height: float, below: float) -> float:
             limit = grow_run(P, s, height, maps, cfg)
             if limit <= 0:
                 return 0.0
             return _grow_side(P, s, Q, grads, strength, _drop(P, desk_plane), extent,
-                              limit=limit + cfg.grow_margin, continuation=cfg.grow_continuation)
+                              limit=min(limit + cfg.grow_margin, below),
+                              continuation=cfg.grow_continuation)
 
         return self._with_sides_grown(rig, grads, strength, found, desk_plane, texture, move,
                                       strip_overlap=cfg.print_max_overlap)
@@ -1589,9 +1595,9 @@ class Detector:
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         strength = self._edge_strength(segs)
 
-        def move(P: NDArray[np.float64], s: int, height: float) -> float:
+        def move(P: NDArray[np.float64], s: int, height: float, below: float) -> float:
             return print_grow(P, s, height, Q, grads, strength, texture, desk_plane,
-                              self.cfg.extent, cfg)
+                              self.cfg.extent, cfg, limit=below)
 
         return self._with_sides_grown(rig, grads, strength, found, desk_plane, texture, move,
                                       strip_overlap=cfg.print_max_overlap)
@@ -1600,19 +1606,20 @@ class Detector:
                           strength: dict[str, float], found: list[tuple[Pair, BookDetection]],
                           desk_plane: NDArray[np.float64],
                           texture: dict[str, NDArray[np.float32]] | None,
-                          move: Callable[[NDArray[np.float64], int, float], float], *,
+                          move: Callable[[NDArray[np.float64], int, float, float], float], *,
                           strip_overlap: float | None = None,
                           ) -> list[tuple[Pair, BookDetection]]:
-        """``found`` with each cover's sides moved out by ``move(P, s, height)`` metres
-        (corners (4, 3) on the cover's plane, side ``s`` from corner ``s`` to ``s + 1``; 0:
-        not moved), side after side. A new side stereo puts on the desk is not taken
-        (:func:`rovis.extent._on_desk`, with ``extent.height_check``), nor one whose page
-        block shows with no edge at its foot (``trim.grow_foot``), nor, with
-        ``strip_overlap``, one whose added strip lies over more than that share of it of
-        another book (left image). A grown cover over more than
+        """``found`` with each cover's sides moved out by ``move(P, s, height, below)``
+        metres (corners (4, 3) on the cover's plane, side ``s`` from corner ``s`` to ``s +
+        1``; no farther than ``below``; 0: not moved), side after side. A new side stereo
+        puts on the desk is not taken (:func:`rovis.extent._on_desk`, with
+        ``extent.height_check``), nor one whose page block shows with no edge at its foot
+        (``trim.grow_foot``), nor, with ``strip_overlap``, one whose added strip lies over
+        more than that share of it of another book (left image): :meth:`_grow_refused`.
+        A refused move is asked again up to :data:`GROW_RETRY_GAP` short of it, for a
+        nearer edge, :data:`GROW_TRIES` asks in all. A grown cover over more than
         ``stereo.transfer_max_overlap`` of another book (of the smaller, left image) is
         not kept; the grown cover goes through the pose checks again."""
-        Q = {"left": rig.Q_L, "right": rig.Q_R}
         up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
         overlap = self.cfg.stereo.transfer_max_overlap
         out = list(found)
@@ -1621,23 +1628,18 @@ class Detector:
             drop = _drop(P, desk_plane)
             moved = False
             for s in range(4):
-                d = move(P, s, height)
-                if d <= 0:
-                    continue
-                grown = _moved(P, s, np.array([d]))[0]
-                if strip_overlap is not None:
-                    added = geometry.project(rig.Q_L, np.array([P[s], P[(s + 1) % 4],
-                                                                grown[(s + 1) % 4], grown[s]]))
-                    if any(_shared(added, p.left) > strip_overlap
-                           for k, (p, _) in enumerate(out) if k != i):
+                below = np.inf
+                for _ in range(GROW_TRIES):
+                    d = move(P, s, height, below)
+                    if d <= 0:
+                        break
+                    grown = _moved(P, s, np.array([d]))[0]
+                    if self._grow_refused(rig, grads, strength, out, i, P, grown, s, drop, up,
+                                          strip_overlap):
+                        below = d - GROW_RETRY_GAP  # a nearer edge, if there is one
                         continue
-                if self.cfg.extent.height_check and _on_desk(grown, s, Q, grads, up, drop,
-                                                              self.cfg.extent):
-                    continue
-                if self.cfg.trim.grow_foot and not _foot_is_edge(grown, s, Q, grads, strength,
-                                                                 drop, self.cfg.extent):
-                    continue
-                P, moved = grown, True
+                    P, moved = grown, True
+                    break
             if not moved:
                 continue
             left = geometry.project(rig.Q_L, P)
@@ -1648,6 +1650,27 @@ class Detector:
             if new_book is not None:
                 out[i] = (new_pair, new_book)
         return out
+
+    def _grow_refused(self, rig: StereoRig, grads: dict[str, Gradients],
+                      strength: dict[str, float], out: list[tuple[Pair, BookDetection]],
+                      i: int, P: NDArray[np.float64], grown: NDArray[np.float64], s: int,
+                      drop: NDArray[np.float64], up: NDArray[np.float64],
+                      strip_overlap: float | None) -> bool:
+        """Whether :meth:`_with_sides_grown` refuses to move side ``s`` of book ``i``'s
+        cover ``P`` (4, 3) out to ``grown``'s: its added strip over another book, the new
+        side on the desk, or its page block's foot no edge."""
+        Q = {"left": rig.Q_L, "right": rig.Q_R}
+        if strip_overlap is not None:
+            added = geometry.project(rig.Q_L, np.array([P[s], P[(s + 1) % 4],
+                                                        grown[(s + 1) % 4], grown[s]]))
+            if any(_shared(added, p.left) > strip_overlap
+                   for k, (p, _) in enumerate(out) if k != i):
+                return True
+        if self.cfg.extent.height_check and _on_desk(grown, s, Q, grads, up, drop,
+                                                      self.cfg.extent):
+            return True
+        return self.cfg.trim.grow_foot and not _foot_is_edge(grown, s, Q, grads, strength,
+                                                              drop, self.cfg.extent)
 
     def _from_height_map(self, rig: StereoRig, grads: dict[str, Gradients],
                          found: list[tuple[Pair, BookDetection]], desk_plane: NDArray[np.float64],

@@ -415,9 +415,10 @@ def grow_run(P: NDArray[np.float64], s: int, height: float,
 def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArray[np.float64]],
                grads: dict[str, Gradients], min_strength: dict[str, float],
                texture: dict[str, NDArray[np.float32]], desk_plane: NDArray[np.float64],
-               ext: ExtentConfig, cfg: TrimConfig = TrimConfig()) -> float:
+               ext: ExtentConfig, cfg: TrimConfig = TrimConfig(), *,
+               limit: float = np.inf) -> float:
     """How far side ``s`` of cover ``P`` (4, 3) moves out onto the cover's own edge, as its
-    print tells (metres; 0: not at all).
+    print tells (metres; 0: not at all); ``limit``: the farthest move looked at.
 
     A side cut short at a printed band has more cover beyond it: between the two images
     its print lines up on the cover's plane, while beyond the cover's edge the desk, or
@@ -453,8 +454,9 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
        nothing tells, and the side stays.
     """
     a, b = s, (s + 1) % 4
-    room = min(cfg.print_reach, ext.max_side - max(np.linalg.norm(P[a] - P[(a - 1) % 4]),
-                                                   np.linalg.norm(P[b] - P[(b + 1) % 4])))
+    room = min(cfg.print_reach, limit,
+               ext.max_side - max(np.linalg.norm(P[a] - P[(a - 1) % 4]),
+                                  np.linalg.norm(P[b] - P[(b + 1) % 4])))
     gap = 0.002  # the edges themselves, left out of the strips
     d = np.arange(2 * gap, room + 1e-9, ext.step)
     least = cfg.print_min  # the nearest edge that may be the cover's (step 3)
