@@ -51,6 +51,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the height check by the height map", ["trim.map_height=false"]),
     ("the grow by the height map", ["trim.grow=false"]),
     ("the grow by the print", ["trim.print_grow=false"]),
+    ("a refused grow asked again", ["trim.grow_tries=1"]),
 ]
 
 

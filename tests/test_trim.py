@@ -451,24 +451,22 @@ def test_a_photo_cover_cut_more_than_9_cm_short_is_grown_to_its_edge(scene, book
     assert off > 0.05 and true_size[grown] - size[grown] > 0.1  # the piece: no match
 
 
-def test_a_refused_grow_is_asked_again_for_a_nearer_edge(monkeypatch):
+def test_a_refused_grow_is_asked_again_for_a_nearer_edge():
     # rovis synth --protocol table1 --seed 4's scene 44: book 1 (190 x 173 x 12 mm,
     # printed) is found 151 mm long, cut at a band. The last edge within the maps' run, 39
     # mm out, is refused (no edge at its page block's foot); asked again short of it, the
     # maps' grow finds the cover's end 34 mm out
-    import rovis.pipeline as pipeline
     sc, r = dataset_scene("table1", 4, 44)
     truth = r.truth["books"][1]
 
-    def nearest() -> tuple[float, np.ndarray]:
-        res = Detector(sc.rig, DetectConfig()).detect(r.left, r.right)
+    def nearest(settings: list[str]) -> tuple[float, np.ndarray]:
+        res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
         off = [np.linalg.norm(o.pose.center - truth["center"]) for o in res.objects]
         return min(off), np.sort(res.objects[int(np.argmin(off))].pose.size[:2])
 
-    off, size = nearest()
+    off, size = nearest([])
     assert off < 0.008 and size[0] > 0.175  # m (the truth: 173 and 190 mm)
-    monkeypatch.setattr(pipeline, "GROW_TRIES", 1)  # the refused move only
-    off, size = nearest()
+    off, size = nearest(["trim.grow_tries=1"])  # the refused move only
     assert off > 0.009 and size[0] < 0.16
 
 
@@ -489,5 +487,9 @@ def test_bad_settings_are_refused():
         TrimConfig(print_foot_margin=-0.001)
     with pytest.raises(ValueError, match="bad print_edges"):
         TrimConfig(print_edges=0)
+    with pytest.raises(ValueError, match="bad grow_tries"):
+        TrimConfig(grow_tries=0)
+    with pytest.raises(ValueError, match="bad grow_tries"):
+        TrimConfig(grow_retry=0.0)
     with pytest.raises(ValueError, match="bad print_continuation"):
         TrimConfig(print_max_overlap=1.5)

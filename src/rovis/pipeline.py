@@ -69,11 +69,6 @@ from rovis.undistort import IdealView
 # whose corners make no rectangle in 3D (with it, one with no corner near a right angle:
 # Detector._unskewed), or a rectangle inside a larger cover, in its plane (a print on it);
 # last, a cover over one both segmentations found (Detector._without_overlaps).
-# A side's grow refused (its strip over another book, on the desk, no foot edge): the
-# grow asked again up to this far short of the refused move, at most GROW_TRIES times in
-# all, for a nearer edge (metres; a farther reach had found only the refused one)
-GROW_RETRY_GAP = 0.005
-GROW_TRIES = 3
 DROP_REASONS = ("degenerate", "too long", "too small", "tilted", "height", "side on desk",
                 "texture height", "skewed", "printed", "overlaps")
 # A frame's pool candidates refined (Detector._from_pool): (camera, index into the pool,
@@ -1616,8 +1611,8 @@ class Detector:
         ``extent.height_check``), nor one whose page block shows with no edge at its foot
         (``trim.grow_foot``), nor, with ``strip_overlap``, one whose added strip lies over
         more than that share of it of another book (left image): :meth:`_grow_refused`.
-        A refused move is asked again up to :data:`GROW_RETRY_GAP` short of it, for a
-        nearer edge, :data:`GROW_TRIES` asks in all. A grown cover over more than
+        A refused move is asked again up to ``trim.grow_retry`` short of it, for a nearer
+        edge, ``trim.grow_tries`` asks in all. A grown cover over more than
         ``stereo.transfer_max_overlap`` of another book (of the smaller, left image) is
         not kept; the grown cover goes through the pose checks again."""
         up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
@@ -1629,14 +1624,14 @@ class Detector:
             moved = False
             for s in range(4):
                 below = np.inf
-                for _ in range(GROW_TRIES):
+                for _ in range(self.cfg.trim.grow_tries):
                     d = move(P, s, height, below)
                     if d <= 0:
                         break
                     grown = _moved(P, s, np.array([d]))[0]
                     if self._grow_refused(rig, grads, strength, out, i, P, grown, s, drop, up,
                                           strip_overlap):
-                        below = d - GROW_RETRY_GAP  # a nearer edge, if there is one
+                        below = d - self.cfg.trim.grow_retry  # a nearer edge, if any
                         continue
                     P, moved = grown, True
                     break

@@ -91,6 +91,10 @@ class TrimConfig:
     where it is). One neighbouring side must go on as an edge, in either image, along
     ``print_continuation`` of the way, and the strip added may lie over another book by
     at most ``print_max_overlap`` of it (in the left image).
+
+    Either grow's move refused by these guards (the strip over another book, the new side
+    on the desk, no edge at its page block's foot) is asked again, ending ``grow_retry``
+    short of it, for a nearer edge: ``grow_tries`` asks in all (1: the first move only).
     """
 
     enabled: bool = True
@@ -130,6 +134,8 @@ class TrimConfig:
     print_piece: float = 0.012
     print_edges: int = 2
     print_continuation: float = 0.5
+    grow_tries: int = 3  # asks for a side's grow, a refused move's nearer edge after it
+    grow_retry: float = 0.005  # how far short of a refused move the next ask ends
 
     def __post_init__(self) -> None:
         problems = [name for name, ok in (
@@ -149,6 +155,7 @@ class TrimConfig:
              and self.print_near > 0 and self.print_foot_margin >= 0
              and self.print_beyond > 0 and self.print_piece > 0),
             ("print_edges", self.print_edges >= 1),
+            ("grow_tries", self.grow_tries >= 1 and self.grow_retry > 0),
             ("print_continuation", 0 <= self.print_continuation <= 1
              and 0 <= self.print_max_overlap <= 1 and -1 <= self.print_min_ncc <= 1
              and -2 <= self.print_margin <= 2)) if not ok]
@@ -159,7 +166,8 @@ class TrimConfig:
                              "grow_continuation, print_continuation and print_max_overlap "
                              "in [0, 1]; print_reach, print_min, print_near, print_beyond "
                              "and print_piece positive, print_foot_margin >= 0, "
-                             "print_edges >= 1, print_min_ncc in "
+                             "print_edges >= 1, grow_tries >= 1 and grow_retry > 0, "
+                             "print_min_ncc in "
                              "[-1, 1], print_margin in [-2, 2]; min_samples from 1 to samples; "
                              "grow_margin of any sign; the "
                              f"rest >= 0), got {self}")
