@@ -1626,7 +1626,9 @@ class Detector:
                 below = np.inf
                 for _ in range(self.cfg.trim.grow_tries):
                     d = move(P, s, height, below)
-                    if d <= 0:
+                    # an ask again that ends at its limit found the refused edge cut short
+                    # (its run of offsets reaches the limit), not a nearer one
+                    if d <= 0 or d >= below - 2 * self.cfg.extent.step:
                         break
                     grown = _moved(P, s, np.array([d]))[0]
                     if self._grow_refused(rig, grads, strength, out, i, P, grown, s, drop, up,

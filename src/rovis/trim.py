@@ -155,7 +155,7 @@ class TrimConfig:
              and self.print_near > 0 and self.print_foot_margin >= 0
              and self.print_beyond > 0 and self.print_piece > 0),
             ("print_edges", self.print_edges >= 1),
-            ("grow_tries", self.grow_tries >= 1 and self.grow_retry > 0),
+            ("grow_tries", self.grow_tries >= 1), ("grow_retry", self.grow_retry > 0),
             ("print_continuation", 0 <= self.print_continuation <= 1
              and 0 <= self.print_max_overlap <= 1 and -1 <= self.print_min_ncc <= 1
              and -2 <= self.print_margin <= 2)) if not ok]
@@ -166,7 +166,7 @@ class TrimConfig:
                              "grow_continuation, print_continuation and print_max_overlap "
                              "in [0, 1]; print_reach, print_min, print_near, print_beyond "
                              "and print_piece positive, print_foot_margin >= 0, "
-                             "print_edges >= 1, grow_tries >= 1 and grow_retry > 0, "
+                             "print_edges >= 1, grow_tries >= 1, grow_retry > 0, "
                              "print_min_ncc in "
                              "[-1, 1], print_margin in [-2, 2]; min_samples from 1 to samples; "
                              "grow_margin of any sign; the "
