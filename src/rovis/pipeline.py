@@ -1612,7 +1612,8 @@ class Detector:
         (``trim.grow_foot``), nor, with ``strip_overlap``, one whose added strip lies over
         more than that share of it of another book (left image): :meth:`_grow_refused`.
         A refused move is asked again up to ``trim.grow_retry`` short of it, for a nearer
-        edge, ``trim.grow_tries`` asks in all. A grown cover over more than
+        edge, ``trim.grow_tries`` asks in all; an answer within two offsets of its limit is
+        the refused edge cut short there, and ends the asks. A grown cover over more than
         ``stereo.transfer_max_overlap`` of another book (of the smaller, left image) is
         not kept; the grown cover goes through the pose checks again."""
         up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
