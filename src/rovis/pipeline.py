@@ -1997,15 +1997,14 @@ class Detector:
         for k, (pair, book, why) in enumerate(books):
             if book is not None or why not in ("tilted", "side on desk"):
                 continue
-            fit = self._flat_refit(rig, pair, desk_plane, texture, corners=False)
+            fit = self._side_fit(rig, pair, desk_plane, texture)
             if fit is not None and not any(quad_overlap(fit[0].left, p.left) > overlap
                                            for p, b, _ in out if b is not None):
                 out[k] = fit
         return out
 
     def _flat_refit(self, rig: StereoRig, pair: Pair, desk_plane: NDArray[np.float64],
-                    texture: dict[str, NDArray[np.float32]] | None, *,
-                    corners: bool = True, sides: bool = True,
+                    texture: dict[str, NDArray[np.float32]] | None, *, sides: bool = True,
                     ) -> tuple[Pair, BookDetection, str] | None:
         """The pair as one rectangle parallel to the desk (:meth:`_flat_fit`), or None
         (for a pair that came out tilted or with a side on the desk, and the candidate
@@ -2018,11 +2017,8 @@ class Detector:
         pair fitted flat, or else reconstructed as it is (one free rectangle); where
         neither makes a book, the pair as it came is fitted flat; where that misses, it is
         fitted to its sides with one image's side left out (:meth:`_side_fit`,
-        ``flat_refit_sides``). ``corners`` turns the first two (the settled pair, fitted
-        flat or reconstructed, and the pair fitted flat to its corners) on or off,
-        ``sides`` the last."""
-        out: tuple[Pair, BookDetection, str] | None = None
-        if corners and self.cfg.facing.block_sides:
+        ``flat_refit_sides``; ``sides`` turns that last one on or off)."""
+        if self.cfg.facing.block_sides:
             settled = settle_block_sides({"left": pair.left, "right": pair.right},
                                          {"left": rig.Q_L, "right": rig.Q_R}, desk_plane,
                                          self.cfg.facing)
@@ -2034,8 +2030,7 @@ class Detector:
                     out = trial if trial[1] is not None else None
                 if out is not None:
                     return out
-        if corners:
-            out = self._flat_fit(rig, pair, desk_plane, texture)
+        out = self._flat_fit(rig, pair, desk_plane, texture)
         if out is None and sides and self.cfg.flat_refit_sides > 0:
             out = self._side_fit(rig, pair, desk_plane, texture)
         return out
