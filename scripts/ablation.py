@@ -52,6 +52,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the grow by the height map", ["trim.grow=false"]),
     ("the grow by the print", ["trim.print_grow=false"]),
     ("a refused grow asked again", ["trim.grow_tries=1"]),
+    ("the maps cut again without the found covers", ["heightmap.taken_px=-1"]),
 ]
 
 

@@ -22,6 +22,7 @@ from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
 
 from conftest import ideal_images
+from dataset_scene import dataset_scene
 
 HEIGHT = 0.025  # metres
 
@@ -265,7 +266,57 @@ def test_erosion_shrinks_a_patch_by_its_pixels():
     assert a - b == pytest.approx(10 / 1020, abs=0.001)  # 5 px off each end
 
 
+def test_a_patch_over_a_found_book_is_cut_again_without_its_pixels():
+    # the camera of test_erosion_shrinks_a_patch_by_its_pixels; two books side by side,
+    # 24 and 20 mm high, 120 px deep and 100 px long each: every slab that holds one of
+    # them holds both, and the two make one rectangle
+    Q = np.array([[1000.0, 0, -320, 320], [0, -1000.0, -240, 240], [0, 0, -1.0, 1.0]])
+    desk = np.array([0.0, 0.0, 1.0, 0.0])
+    height = np.full((480, 640), np.nan, np.float32)
+    height[180:300, 220:320] = 0.024
+    height[180:300, 320:420] = 0.020
+    hm = HeightMap(height, np.arange(0.0, 0.075 + 1e-9, 0.003), (0, 0, 640, 480))
+
+    def sides(corners: np.ndarray) -> np.ndarray:
+        return np.sort(np.linalg.norm(corners - np.roll(corners, -1, axis=0), axis=1))[::2]
+
+    (union, h, _), = raised_covers(hm, Q, desk)
+    np.testing.assert_allclose(sides(union), [119 / 1020, 199 / 1020], atol=0.003)  # m
+    # the first book's pixels (and 4 px around them) taken: the second book alone
+    taken = np.zeros(height.shape, bool)
+    taken[176:304, 216:324] = True
+    (rest, h, _), = raised_covers(hm, Q, desk, taken=taken)
+    assert abs(h - 0.020) <= 0.0045
+    np.testing.assert_allclose(sides(rest), [95 / 1020, 119 / 1020], atol=0.003)
+    x = (371.5 - 320) * (1 - h) / 1000  # its pixels' middle, u 324-419
+    assert rest.mean(axis=0)[:2] == pytest.approx([x, 0.0], abs=0.002)
+    assert raised_covers(hm, Q, desk, taken=np.ones(height.shape, bool)) == []
+
+
+@pytest.mark.parametrize("protocol,seed,scene,book", [
+    ("table1", 1, 15, 1),  # build/t1 scene 15: 8 mm thin, beside two covers of its height
+    ("table2", 2, 51, 1),  # build/t2b scene 51: a 20 mm photo cover beside a 25 mm book
+])
+def test_a_book_in_one_patch_with_a_found_one_is_found_in_the_maps_cut_again(
+        protocol, seed, scene, book):
+    # `rovis synth build/t1 --protocol table1 --seed 1` and `rovis synth build/t2b
+    # --protocol table2 --n 128 --seed 2`: the maps' patch of the book runs on over a
+    # book found before, and its rectangle over both is turned down; cut again without
+    # the found covers' pixels (HeightMapConfig.taken_px), the rest of it is the book
+    sc, r = dataset_scene(protocol, seed, scene)
+    truth = r.truth["books"][book]
+
+    def nearest(settings: list[str]) -> float:
+        res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
+        return min(float(np.linalg.norm(o.pose.center - truth["center"])) for o in res.objects)
+
+    assert nearest([]) < 0.005  # m
+    assert nearest(["heightmap.taken_px=-1"]) > 0.05  # not cut again: lost
+
+
 def test_bad_settings_are_refused():
+    with pytest.raises(ValueError, match="heightmap"):
+        HeightMapConfig(taken_overlap=1.5)
     with pytest.raises(ValueError, match="heightmap"):
         HeightMapConfig(smooth_window_px=10)
     with pytest.raises(ValueError, match="heightmap"):

@@ -559,6 +559,20 @@ class Detector:
         if self.cfg.trim.print_grow and texture is not None and desk_plane is not None:
             found = self._grown_by_print(rig, segs, grads, found, desk_plane, texture)
             lap("trim")
+        if self.cfg.heightmap.taken_px >= 0 and maps:
+            # beyond the paper: a patch of the maps that runs on over a book found (two
+            # books of about one height side by side, in one slab) made a rectangle over
+            # both, turned down: the maps cut again without the found covers' pixels, once
+            # the steps above have grown each found cover to its edges
+            more = self._from_height_map(rig, grads, found, desk_plane, texture, maps,
+                                         without_found=True)
+            lap("heightmap")
+            if more:
+                limit = self.cfg.stereo.transfer_max_overlap
+                found += [(p, b) for p, b in self._fit_extents(rig, segs, grads, more,
+                                                               desk_plane, texture, ideal)
+                          if not any(quad_overlap(p.left, q.left) > limit for q, _ in found)]
+                lap("extent")
         # beyond the paper: one cover found as two books, cut at a printed band, joined
         # (after the steps that move each part's outer sides to the cover's edges)
         if self.cfg.split.join and desk_plane is not None:
@@ -1675,10 +1689,13 @@ class Detector:
                          texture: dict[str, NDArray[np.float32]],
                          maps: list[tuple[HeightMap, NDArray[np.float64], HeightMapConfig, int]],
                          refuse: Callable[[NDArray[np.float64]], bool] | None = None,
+                         without_found: bool = False,
                          ) -> list[tuple[Pair, BookDetection]]:
         """Books where no book is yet, from the covers that stand out of the desk in a
         height map of the workspace (:mod:`rovis.heightmap`); ``refuse``, if given, turns
-        down a rectangle (world corners, (4, 3)) before anything is done with it.
+        down a rectangle (world corners, (4, 3)) before anything is done with it;
+        ``without_found``: the maps cut without the pixels of ``found``'s covers
+        (``HeightMapConfig.taken_px`` beyond them).
 
         Each rectangle's height is refined by its print (a fine sweep), its sides are moved
         onto the edges both images show (:func:`rovis.heightmap.snap_sides`), and the
@@ -1691,8 +1708,10 @@ class Detector:
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         side_range = (0.8 * cfg.min_cover_side, cfg.max_cover_side)
         rects = [rect for hm, Q_map, map_cfg, erode in maps  # the fine map's first
-                 for rect in raised_covers(hm, Q_map, desk_plane, side_range=side_range,
-                                           cfg=map_cfg, erode_px=erode)]
+                 for rect in raised_covers(
+                     hm, Q_map, desk_plane, side_range=side_range, cfg=map_cfg, erode_px=erode,
+                     taken=(_footprints(hm, Q_map, found, cfg.heightmap.taken_px)
+                            if without_found else None))]
         taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
         out: list[tuple[Pair, BookDetection]] = []
         for P, height, fill in rects:
@@ -1713,21 +1732,33 @@ class Detector:
             if sweep is not None:
                 height = sweep.best_height
                 P = on_plane(rig.Q_L, left, desk_plane, height)
-            P = snap_sides(P, Q, grads, reach=cfg.heightmap.snap_reach,
-                           inward=cfg.heightmap.snap_inward)
-            exact = Pair(geometry.project(rig.Q_L, P), geometry.project(rig.Q_R, P), float(fill),
-                         0.0, source="height map")
-            refined = [refine_quad(grads[cam], getattr(exact, cam)) for cam in ("left", "right")]
-            # eq. 1 order, kept after refinement
-            refined = _in_eq1_order(replace(exact, left=refined[0], right=refined[1]))
             pair, book = None, None
-            for trial in (refined, exact):
-                pair, book, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
-                if book is not None:
+            snapped = snap_sides(P, Q, grads, reach=cfg.heightmap.snap_reach,
+                                 inward=cfg.heightmap.snap_inward)
+            # the rest of a patch cut again (without_found) ends at its neighbour's edge,
+            # and a faint side of it may snap in onto its print: unsnapped, if that fails
+            for C in ((snapped, P) if without_found else (snapped,)):
+                exact = Pair(geometry.project(rig.Q_L, C), geometry.project(rig.Q_R, C),
+                             float(fill), 0.0, source="height map")
+                refined = [refine_quad(grads[cam], getattr(exact, cam))
+                           for cam in ("left", "right")]
+                # eq. 1 order, kept after refinement
+                refined = _in_eq1_order(replace(exact, left=refined[0], right=refined[1]))
+                for trial in (refined, exact):
+                    pair, book, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
+                    if book is not None:
+                        break
+                if book is not None and min(book.pose.size[:2]) >= cfg.heightmap.min_side:
                     break
             # the height map sees print, not covers: a patch narrower than most books is
             # more often a printed band across a cover than a whole one
             if book is None or pair is None or min(book.pose.size[:2]) < cfg.heightmap.min_side:
+                continue
+            if without_found and any(quad_overlap(getattr(pair, cam), t)
+                                     > cfg.heightmap.taken_overlap
+                                     for cam in Q for t in taken[cam]):
+                # its sides snapped out over a found cover: the rest of a patch past that
+                # cover's edge is print of it, or of a book at its height beside it
                 continue
             taken["left"].append(pair.left)
             taken["right"].append(pair.right)
@@ -2437,6 +2468,19 @@ def _segmented(pair: Pair, book: BookDetection) -> bool:
     (the better evidence where covers disagree: :meth:`Detector._fit_extents`,
     :meth:`Detector._without_overlaps`)."""
     return book.source == "segmentation" and not pair.three_sided
+
+
+def _footprints(hm: HeightMap, Q: NDArray[np.float64], found: list[tuple[Pair, BookDetection]],
+                margin_px: int) -> NDArray[np.bool_]:
+    """The pixels of the map ``hm`` (over the image of projection ``Q``) that the covers of
+    ``found`` take, and those within ``margin_px`` of them."""
+    mask = np.zeros(hm.height.shape, np.uint8)
+    for _, book in found:
+        px = geometry.project(Q, np.asarray(book.corners_world))
+        cv2.fillConvexPoly(mask, np.round(px * 16).astype(np.int32), 1, cv2.LINE_8, 4)
+    if margin_px > 0:
+        mask = cv2.dilate(mask, np.ones((2 * margin_px + 1,) * 2, np.uint8))
+    return mask.astype(bool)
 
 
 def _in_eq1_order(pair: Pair) -> Pair:
