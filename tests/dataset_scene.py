@@ -1,7 +1,7 @@
 """One scene of a ``rovis synth`` dataset, rendered as that command renders it, for the
 tests that pin down what the pipeline does on a development set's scene (build/t1, t1b and
-t1c are ``--protocol table1`` with seeds 1, 2 and 3; build/t2 ``--protocol table2`` with
-seed 1)."""
+t1c are ``--protocol table1`` with seeds 1, 2 and 3, build/t1d with seed 4; build/t2
+``--protocol table2`` with seed 1, build/t2b with seed 2)."""
 
 from __future__ import annotations
 

@@ -425,13 +425,16 @@ def _false_books(res, truth):
 
 def test_a_cover_over_a_segmented_one_is_dropped():
     # build/t2 scene 56: the candidate pool made a false 294 x 141 mm "book" over a book
-    # both segmentations found (22 % of the smaller quad); dropped, and reported so
+    # both segmentations found (22 % of the smaller quad); dropped, and reported so. (The
+    # height map cut again without the found covers, heightmap.taken_px, finds a false
+    # piece of the lost 8 mm photo cover there: off, to see this step's own.)
     sc, r = dataset_scene("table2", 1, 56)
-    res = Detector(sc.rig).detect(r.left, r.right)
+    settings = ["heightmap.taken_px=-1"]
+    res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
     assert _false_books(res, r.truth) == []
     assert any(why == "overlaps" for why, _, _ in res.dropped)
     assert any("over a cover the segmentations found" in w for w in res.warnings)
-    off = Detector(sc.rig, with_settings(DetectConfig(), ["stereo.over_segmented=0"]))
+    off = Detector(sc.rig, with_settings(DetectConfig(), [*settings, "stereo.over_segmented=0"]))
     res = off.detect(r.left, r.right)
     assert len(_false_books(res, r.truth)) == 1
     assert not any(why == "overlaps" for why, _, _ in res.dropped)

@@ -60,11 +60,11 @@ class HeightMapConfig:
     reads heights over ``dense_min_read`` of its inner part or more and neither reads the
     desk over more than ``dense_max_desk`` of its readings (:func:`sweeps_confirm`).
 
-    ``taken_px``: where a sweep's rectangle was turned down for lying over a book found
-    before (two books of about one height side by side make one patch in one slab), the
-    sweeps are cut again, late, without the found covers' pixels and those within this many
-    pixels of them (negative: not cut again); a cover so found is not taken where it lies
-    over a found one by more than ``taken_overlap`` of the smaller quad in either image.
+    ``taken_px``: the sweeps are cut again late, without the found covers' pixels and
+    those within this many pixels of the map (the smooth map's are two image pixels) of
+    them, for a book whose patch ran on over a found one of about its height (negative: not
+    cut again); a cover so found is not taken where it lies over a found one by more than
+    ``taken_overlap`` of the smaller quad in either image.
     """
 
     enabled: bool = True
@@ -104,13 +104,14 @@ class HeightMapConfig:
                 and self.dense_block_px >= 3 and self.dense_block_px % 2 == 1
                 and self.dense_slab > 0 and self.dense_erode_px >= 0
                 and 0.0 <= self.dense_max_desk <= 1.0 and 0.0 <= self.dense_min_read <= 1.0
-                and 0.0 <= self.taken_overlap <= 1.0):
+                and 0.0 <= self.taken_overlap <= 1.0 and isinstance(self.taken_px, int)):
             raise ValueError("heightmap: step and slab must be positive, max_height above "
                              "min_height by more than a step, window_px and "
                              "smooth_window_px odd and >= 3, smooth_sigma_px positive, "
                              "smooth_erode_px >= 0, dense_block_px odd and >= 3, "
                              "dense_slab positive, dense_erode_px >= 0, dense_max_desk, "
-                             f"dense_min_read and taken_overlap in [0, 1], got {self}")
+                             f"dense_min_read and taken_overlap in [0, 1], taken_px an "
+                             f"int, got {self}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -493,20 +494,20 @@ def sweeps_confirm(P: ArrayLike, maps: list[tuple[HeightMap, NDArray[np.float64]
 def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
                   side_range: tuple[float, float] = (0.05, 0.45),
                   cfg: HeightMapConfig = HeightMapConfig(), erode_px: int = 0,
-                  taken: NDArray[np.bool_] | None = None,
+                  exclude: NDArray[np.bool_] | None = None,
                   ) -> list[tuple[NDArray[np.float64], float, float]]:
     """Cover candidates: rectangles fitted to patches of one height above the desk.
 
     Each swept height from ``cfg.raised`` up (but the top one) is a slab (± ``cfg.slab``);
-    the slab's pixels are joined into patches (8-connected, after closing gaps of up to 4 px) and each patch of at
-    least ``cfg.min_pixels`` is laid on the plane at that height and fitted with its
-    smallest rectangle. Rectangles with sides in ``side_range`` whose outline the patch
-    fills (``cfg.min_fill``) are kept, the most pixels first; one overlapping a kept one
-    by more than half (in the image) is the same cover seen in a neighbouring slab.
+    the slab's pixels are joined into patches (8-connected, after closing gaps of up to
+    4 px) and each patch of at least ``cfg.min_pixels`` is laid on the plane at that height
+    and fitted with its smallest rectangle. Rectangles with sides in ``side_range`` whose
+    outline the patch fills (``cfg.min_fill``) are kept, the most pixels first; one
+    overlapping a kept one by more than half (in the image) is the same cover seen in a
+    neighbouring slab.
     ``erode_px`` > 0 shrinks each slab's joined patches by that many pixels first (a wide
-    NCC window's patch reaches past the cover's edge by about half the window). ``taken``,
-    if given (a boolean mask over the map), holds pixels that are in no slab: the covers
-    of books already found.
+    NCC window's patch reaches past the cover's edge by about half the window).
+    ``exclude``, if given (bool, the map's shape), marks pixels left out of every slab.
 
     Returns
     -------
@@ -520,8 +521,11 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
     height = hm.height[y0:y1, x0:x1]
     # the top height also holds everything above it (a mug's rim): in no slab
     valid = np.isfinite(height) & (height < hm.heights[-1] - 0.5 * cfg.step)
-    if taken is not None:
-        valid &= ~taken[y0:y1, x0:x1]
+    if exclude is not None:
+        if exclude.shape != hm.height.shape:
+            raise ValueError(f"exclude: expected shape {hm.height.shape} (the map's), got "
+                             f"{exclude.shape}")
+        valid &= ~exclude[y0:y1, x0:x1]
     found: list[tuple[int, NDArray[np.float64], float, float, NDArray[np.float64]]] = []
     kernel = np.ones((5, 5), np.uint8)
     shift = np.array([[1.0, 0.0, x0], [0.0, 1.0, y0], [0.0, 0.0, 1.0]])  # crop → image

@@ -560,18 +560,20 @@ class Detector:
             found = self._grown_by_print(rig, segs, grads, found, desk_plane, texture)
             lap("trim")
         if self.cfg.heightmap.taken_px >= 0 and maps:
-            # beyond the paper: a patch of the maps that runs on over a book found (two
-            # books of about one height side by side, in one slab) made a rectangle over
-            # both, turned down: the maps cut again without the found covers' pixels, once
-            # the steps above have grown each found cover to its edges
+            # beyond the paper: two books of about one height side by side make one patch
+            # in one slab of the maps, and one rectangle over both, which was turned down
+            # where one of them was found: the maps cut again without the found covers'
+            # pixels, once the steps above have grown each found cover to its edges
             more = self._from_height_map(rig, grads, found, desk_plane, texture, maps,
                                          without_found=True)
             lap("heightmap")
             if more:
-                limit = self.cfg.stereo.transfer_max_overlap
-                found += [(p, b) for p, b in self._fit_extents(rig, segs, grads, more,
-                                                               desk_plane, texture, ideal)
-                          if not any(quad_overlap(p.left, q.left) > limit for q, _ in found)]
+                # each new book through the extent step, kept where it still lies over no
+                # book found (as the pass asked of it: the extent step may grow it over one)
+                for pair, book in self._fit_extents(rig, segs, grads, more, desk_plane, texture,
+                                                    ideal):
+                    if not _over_any_of(pair, found, self.cfg.heightmap.taken_overlap):
+                        found.append((pair, book))
                 lap("extent")
         # beyond the paper: one cover found as two books, cut at a printed band, joined
         # (after the steps that move each part's outer sides to the cover's edges)
@@ -1695,7 +1697,8 @@ class Detector:
         height map of the workspace (:mod:`rovis.heightmap`); ``refuse``, if given, turns
         down a rectangle (world corners, (4, 3)) before anything is done with it;
         ``without_found``: the maps cut without the pixels of ``found``'s covers
-        (``HeightMapConfig.taken_px`` beyond them).
+        (``HeightMapConfig.taken_px`` beyond them), each rectangle tried unsnapped too where
+        the snapped one fails, and a book over a found one (``taken_overlap``) not taken.
 
         Each rectangle's height is refined by its print (a fine sweep), its sides are moved
         onto the edges both images show (:func:`rovis.heightmap.snap_sides`), and the
@@ -1710,10 +1713,21 @@ class Detector:
         rects = [rect for hm, Q_map, map_cfg, erode in maps  # the fine map's first
                  for rect in raised_covers(
                      hm, Q_map, desk_plane, side_range=side_range, cfg=map_cfg, erode_px=erode,
-                     taken=(_footprints(hm, Q_map, found, cfg.heightmap.taken_px)
-                            if without_found else None))]
+                     exclude=(_footprints(hm, Q_map, found, cfg.heightmap.taken_px)
+                              if without_found else None))]
         taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
         out: list[tuple[Pair, BookDetection]] = []
+
+        def taken_ok(pair: Pair, book: BookDetection) -> bool:
+            # the height map sees print, not covers: a patch narrower than most books is
+            # more often a printed band across a cover than a whole one
+            if min(book.pose.size[:2]) < cfg.heightmap.min_side:
+                return False
+            # the rest of a patch cut again (without_found) that lies over a found cover is
+            # print of it, or of a book at its height beside it
+            return not (without_found and _over_any_of(pair, found + out,
+                                                        cfg.heightmap.taken_overlap))
+
         for P, height, fill in rects:
             if refuse is not None and refuse(P):
                 continue
@@ -1735,8 +1749,9 @@ class Detector:
             pair, book = None, None
             snapped = snap_sides(P, Q, grads, reach=cfg.heightmap.snap_reach,
                                  inward=cfg.heightmap.snap_inward)
-            # the rest of a patch cut again (without_found) ends at its neighbour's edge,
-            # and a faint side of it may snap in onto its print: unsnapped, if that fails
+            # the rest of a patch cut again (without_found) ends at its neighbour's edge, and
+            # a faint side of it may snap in onto its print, or out over that neighbour: the
+            # rectangle unsnapped where the snapped one fails
             for C in ((snapped, P) if without_found else (snapped,)):
                 exact = Pair(geometry.project(rig.Q_L, C), geometry.project(rig.Q_R, C),
                              float(fill), 0.0, source="height map")
@@ -1748,17 +1763,9 @@ class Detector:
                     pair, book, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
                     if book is not None:
                         break
-                if book is not None and min(book.pose.size[:2]) >= cfg.heightmap.min_side:
+                if book is not None and pair is not None and taken_ok(pair, book):
                     break
-            # the height map sees print, not covers: a patch narrower than most books is
-            # more often a printed band across a cover than a whole one
-            if book is None or pair is None or min(book.pose.size[:2]) < cfg.heightmap.min_side:
-                continue
-            if without_found and any(quad_overlap(getattr(pair, cam), t)
-                                     > cfg.heightmap.taken_overlap
-                                     for cam in Q for t in taken[cam]):
-                # its sides snapped out over a found cover: the rest of a patch past that
-                # cover's edge is print of it, or of a book at its height beside it
+            if book is None or pair is None or not taken_ok(pair, book):
                 continue
             taken["left"].append(pair.left)
             taken["right"].append(pair.right)
@@ -2468,6 +2475,13 @@ def _segmented(pair: Pair, book: BookDetection) -> bool:
     (the better evidence where covers disagree: :meth:`Detector._fit_extents`,
     :meth:`Detector._without_overlaps`)."""
     return book.source == "segmentation" and not pair.three_sided
+
+
+def _over_any_of(pair: Pair, found: list[tuple[Pair, BookDetection]], limit: float) -> bool:
+    """Whether ``pair``'s quad lies over a quad of ``found``'s by more than ``limit`` of the
+    smaller one (:func:`quad_overlap`) in either image."""
+    return any(quad_overlap(pair.left, p.left) > limit or quad_overlap(pair.right, p.right) > limit
+               for p, _ in found)
 
 
 def _footprints(hm: HeightMap, Q: NDArray[np.float64], found: list[tuple[Pair, BookDetection]],
