@@ -60,11 +60,11 @@ class HeightMapConfig:
     reads heights over ``dense_min_read`` of its inner part or more and neither reads the
     desk over more than ``dense_max_desk`` of its readings (:func:`sweeps_confirm`).
 
-    ``taken_px``: the sweeps are cut again late, without the found covers' pixels and
-    those within this many pixels of the map (the smooth map's are two image pixels) of
-    them, for a book whose patch ran on over a found one of about its height (negative: not
-    cut again); a cover so found is not taken where it lies over a found one by more than
-    ``taken_overlap`` of the smaller quad in either image.
+    ``taken_px``: late, the sweeps are cut again without the found covers' pixels and those
+    within this many of the map's pixels around them (on the half-resolution smooth map,
+    two image pixels each), for a book whose patch ran on over a found one of about its
+    height (negative: not cut again); a cover so found is not taken where it lies over a
+    found one by more than ``taken_overlap`` of the smaller quad in either image.
     """
 
     enabled: bool = True

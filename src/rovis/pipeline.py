@@ -1718,7 +1718,7 @@ class Detector:
         taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
         out: list[tuple[Pair, BookDetection]] = []
 
-        def taken_ok(pair: Pair, book: BookDetection) -> bool:
+        def kept(pair: Pair, book: BookDetection) -> bool:
             # the height map sees print, not covers: a patch narrower than most books is
             # more often a printed band across a cover than a whole one
             if min(book.pose.size[:2]) < cfg.heightmap.min_side:
@@ -1763,9 +1763,9 @@ class Detector:
                     pair, book, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
                     if book is not None:
                         break
-                if book is not None and pair is not None and taken_ok(pair, book):
+                if book is not None and pair is not None and kept(pair, book):
                     break
-            if book is None or pair is None or not taken_ok(pair, book):
+            if book is None or pair is None or not kept(pair, book):
                 continue
             taken["left"].append(pair.left)
             taken["right"].append(pair.right)
