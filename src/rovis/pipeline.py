@@ -2479,9 +2479,9 @@ def _segmented(pair: Pair, book: BookDetection) -> bool:
 
 def _over_any_of(pair: Pair, found: list[tuple[Pair, BookDetection]], limit: float) -> bool:
     """Whether ``pair``'s quad lies over a quad of ``found``'s by more than ``limit`` of the
-    smaller one (:func:`quad_overlap`) in either image."""
-    return any(quad_overlap(pair.left, p.left) > limit or quad_overlap(pair.right, p.right) > limit
-               for p, _ in found)
+    smaller one (:func:`quad_overlap`) in either image (:func:`_over_any` in each)."""
+    return any(bool(_over_any(getattr(pair, cam)[None], [getattr(p, cam) for p, _ in found],
+                              limit)[0]) for cam in ("left", "right"))
 
 
 def _footprints(hm: HeightMap, Q: NDArray[np.float64], found: list[tuple[Pair, BookDetection]],
