@@ -94,11 +94,17 @@ class ExtentConfig:
     frame_max: float = 0.02
     frame_tone: float = 0.12
     frame_agree: float = 0.006  # the four sides' moves differ at most so (an even margin)
+    # A side of a book the height maps found not pulled inward over a strip they read at
+    # the cover's height (the pipeline's Detector._fit_extents: a gap in a picture's edges,
+    # not the cover's end), but for keep_print_margin next to the side's new place
+    keep_print: bool = True
+    keep_print_margin: float = 0.02  # the maps carry a cover's height 5-20 mm beyond its edge
 
 
 def fit_extent(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
                grads: dict[str, Gradients], min_strength: dict[str, float],
                desk_plane: NDArray[np.float64], cfg: ExtentConfig = ExtentConfig(),
+               still_cover: Callable[[NDArray[np.float64]], bool] | None = None,
                ) -> NDArray[np.float64] | None:
     """The cover's corners with its sides moved to the cover's edges, or None if none moves.
 
@@ -118,6 +124,10 @@ def fit_extent(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     desk_plane : ndarray, shape (4,)
         ``[nx, ny, nz, d]`` (world, normal up): the cover plane is parallel to it at the
         corners' mean height.
+    still_cover : callable, optional
+        Asked of the strip a side's pull inward would cut away (its corners (4, 3), world):
+        True keeps the side where it is (the pipeline asks the height maps whether the
+        strip's print stands at the cover's height).
 
     Returns
     -------
@@ -134,6 +144,12 @@ def fit_extent(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
         d = _shrink_side(P, s, runs, Q, grads, min_strength, cfg)
         if d < 0 and cfg.height_check and _at_cover_height(P, s, Q, grads, up, drop, cfg):
             d = 0.0  # the side is on a line at the cover's height: the cover's edge or a print
+        if d < -cfg.keep_print_margin and still_cover is not None:
+            # the strip cut away, but for keep_print_margin next to the side's new place
+            a, b = s, (s + 1) % 4
+            inner = _moved(P, s, np.array([d + cfg.keep_print_margin]))[0]
+            if still_cover(np.array([P[a], P[b], inner[b], inner[a]])):
+                d = 0.0  # the cover's print goes on over the strip: the gap is in its print
         if d < 0:
             P = _moved(P, s, np.array([d]))[0]
             runs = _missing_runs(P, Q, grads, min_strength, cfg)
@@ -259,6 +275,7 @@ def fit_pair_extent(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArra
                     grads: dict[str, Gradients], min_strength: dict[str, float],
                     desk_plane: NDArray[np.float64], cfg: ExtentConfig = ExtentConfig(),
                     gray: dict[str, NDArray[np.uint8]] | None = None,
+                    still_cover: Callable[[NDArray[np.float64]], bool] | None = None,
                     ) -> dict[str, NDArray[np.float64]] | None:
     """:func:`fit_extent` for a stereo pair of ideal-pixel corners (4, 2) per camera, then
     with ``gray`` (both ideal images) and ``cfg.frame`` :func:`grow_frame` from where it
@@ -268,7 +285,7 @@ def fit_pair_extent(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArra
     P = geometry.triangulate(Q["left"], Q["right"], corners["left"], corners["right"])
     if not np.all(np.isfinite(P)):
         return None
-    G = fit_extent(P, Q, grads, min_strength, desk_plane, cfg)
+    G = fit_extent(P, Q, grads, min_strength, desk_plane, cfg, still_cover)
     if cfg.frame and gray is not None:  # a printed frame taken for the cover, grown on
         F = grow_frame(P if G is None else G, Q, grads, gray, min_strength, desk_plane, cfg)
         G = G if F is None else F

@@ -518,9 +518,10 @@ class Detector:
         if self.cfg.side_height.enabled and desk_plane is not None:
             found = self._with_side_heights(rig, grads, found, desk_plane, texture)
             lap("side_height")
+        read = [(hm, Q) for hm, Q, _, _ in maps]  # each map and the projection it is over
         if (self.cfg.extent.grow or self.cfg.extent.shrink) and desk_plane is not None:
             earlier = [pair.left for pair, _ in found]
-            found = self._fit_extents(rig, segs, grads, found, desk_plane, texture, ideal)
+            found = self._fit_extents(rig, segs, grads, found, desk_plane, texture, ideal, read)
             lap("extent")
             if self.cfg.stereo.pool and self.cfg.stereo.pool_again and any(
                     max((_shared(q, pair.left) for pair, _ in found), default=0.0) < 0.75
@@ -530,7 +531,7 @@ class Detector:
                 more = self._from_pool(rig, segs, grads, found, desk_plane, texture, refined)
                 if more:
                     found += self._fit_extents(rig, segs, grads, more, desk_plane, texture,
-                                               ideal)
+                                               ideal, read)
                 lap("stereo")
         # a book from the small candidates with sides unseen that the extent step left under
         # its bound (stereo.small_open_min_side) is a piece of a cover cut short at a band of
@@ -542,7 +543,6 @@ class Detector:
         if self.cfg.split.enabled and desk_plane is not None:
             found = self._split_unions(rig, segs, grads, found, desk_plane, texture)
             lap("split")
-        read = [(hm, Q) for hm, Q, _, _ in maps]  # each map and the projection it is over
         # beyond the paper: a plain cover at the wrong height, moved to the height map's
         if self.cfg.trim.map_height and read and desk_plane is not None:
             found = self._at_map_height(rig, segs, grads, found, desk_plane, texture, read)
@@ -571,7 +571,7 @@ class Detector:
                 # each new book through the extent step, kept where it still lies over no
                 # book found (as the pass asked of it: the extent step may grow it over one)
                 for pair, book in self._fit_extents(rig, segs, grads, more, desk_plane, texture,
-                                                    ideal):
+                                                    ideal, read):
                     if not _over_any_of(pair, found, self.cfg.heightmap.taken_overlap):
                         found.append((pair, book))
                 lap("extent")
@@ -1865,16 +1865,33 @@ class Detector:
                      desk_plane: NDArray[np.float64],
                      texture: dict[str, NDArray[np.float32]] | None = None,
                      ideal: dict[str, NDArray[np.uint8]] | None = None,
+                     maps: list[tuple[HeightMap, NDArray[np.float64]]] | None = None,
                      ) -> list[tuple[Pair, BookDetection]]:
         """Books whose cover stops at a printed line or reaches beyond its end, with their
         sides moved to the cover's edges (:mod:`rovis.extent`; the moved cover must pass the
         pose checks again, e.g. its size, and its print's height test). A book overlapping a
         moved cover (its other part) gives way to it, except that a cover found otherwise
         than by both segmentations, with every side seen, is not moved over one so found.
-        The moved cover keeps its pair's ``quality`` and ``error_px``."""
+        The moved cover keeps its pair's ``quality`` and ``error_px``.
+
+        With ``maps`` (each height map and the projection it is over) and
+        ``extent.keep_print``, a side of a book the maps found is not pulled inward over a
+        strip they read at the cover's height (:func:`rovis.trim.map_height`, within
+        ``trim.tolerance``; the strip less ``extent.keep_print_margin`` next to the side's
+        new place): the edges missing there are a gap in its picture, not the cover's end.
+        (A book found by its edges may lie beside another of its height: the maps do not
+        tell their covers apart.)"""
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         strength = self._edge_strength(segs)
         out, moved, before = [], [], {}
+        read = maps if maps and self.cfg.extent.keep_print else None
+
+        def at_height(height: float) -> Callable[[NDArray[np.float64]], bool]:
+            def still_cover(strip: NDArray[np.float64]) -> bool:
+                h = map_height(strip, read, self.cfg.trim)  # type: ignore[arg-type]
+                return h is not None and abs(h - height) <= self.cfg.trim.tolerance
+            return still_cover
+
         for pair, book in found:
             if self.cfg.facing.enabled:  # the page block's edge that is the cover's, in both
                 settled = settle_facing_sides({"left": pair.left, "right": pair.right}, Q,
@@ -1885,8 +1902,11 @@ class Detector:
                         desk_plane, texture)
                     if fitted is not None:
                         pair, book = trial, fitted
+            by_maps = read is not None and book.source == "height map"
             new = fit_pair_extent({"left": pair.left, "right": pair.right}, Q, grads, strength,
-                                  desk_plane, self.cfg.extent, gray=ideal)
+                                  desk_plane, self.cfg.extent, gray=ideal,
+                                  still_cover=at_height(float(book.pose.size[2])) if by_maps
+                                  else None)
             if new is not None:
                 bigger = _in_eq1_order(replace(pair, left=new["left"], right=new["right"]))
                 bigger, fitted, _ = self._reconstruct_or_why(rig, bigger, desk_plane, texture)
