@@ -107,7 +107,7 @@ def test_a_side_stays_where_the_strip_it_would_cut_is_still_cover(lone_book, sti
     assert len(asked) == 1
     strip = asked[0]
     # the strip runs along side 1, from where the side was to `margin` short of the cut
-    assert np.linalg.norm(strip[0] - wide[1]) < 1e-9 and np.linalg.norm(strip[1] - wide[2]) < 1e-9
+    assert np.linalg.norm(strip[0] - wide[1]) < 1e-6 and np.linalg.norm(strip[1] - wide[2]) < 1e-6
     assert np.linalg.norm(strip[3] - strip[0]) == pytest.approx(out - margin, abs=0.003)
     if still_cover:
         assert new is None  # the side stays, and nothing else moves
@@ -117,8 +117,8 @@ def test_a_side_stays_where_the_strip_it_would_cut_is_still_cover(lone_book, sti
 
 
 def test_a_pull_within_the_margin_is_not_asked_about(lone_book):
-    # the maps carry a cover's height up to 2 cm beyond its edge: a cut that short is the
-    # edges' call alone
+    # a pull no longer than extent.keep_print_margin (the maps carry a cover's height up to
+    # 2 cm beyond its edge) is the edges' call alone: here a 3.5 cm pull under a 5 cm margin
     P, Q, grads, desk, _ = lone_book
     strength = CANNY_LOW_RATIO * SegmentConfig().open_T_H
     wide = _side_moved(P, 1, 0.035)
@@ -137,8 +137,9 @@ def test_a_pull_within_the_margin_is_not_asked_about(lone_book):
 def test_a_book_the_maps_found_is_not_cut_at_a_gap_in_its_print(scene, book):
     # build/t1d (`rovis synth build/t1d --protocol table1 --n 100 --seed 4`) scenes 4 and 41:
     # photo covers 36 and 52 mm high, found from the height maps; without the maps' say the
-    # extent step pulls two sides in by 34-55 mm each, over the picture the maps read at
-    # the cover's height, to 59 and 27 mm wide, and the book is dropped as too narrow
+    # extent step pulls a side in by 55 mm (scene 4) or two by 34 and 46 mm (scene 41), over
+    # the picture the maps read at the cover's height, to 59 and 27 mm wide, and the book is
+    # dropped as too narrow
     sc, r = dataset_scene("table1", 4, scene)
     truth = np.asarray(r.truth["books"][book]["center"])
 
