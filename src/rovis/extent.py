@@ -125,9 +125,12 @@ def fit_extent(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
         ``[nx, ny, nz, d]`` (world, normal up): the cover plane is parallel to it at the
         corners' mean height.
     still_cover : callable, optional
-        Asked of the strip a side's pull inward would cut away (its corners (4, 3), world):
-        True keeps the side where it is (the pipeline asks the height maps whether the
-        strip's print stands at the cover's height).
+        Asked of each pull inward longer than ``cfg.keep_print_margin``: the strip it would
+        cut away, less that margin next to the side's new place, as world corners (4, 3)
+        in order around it (the side's two ends, then the far edge's). True keeps the side
+        where it is. (``cfg.keep_print`` is the pipeline's switch, not read here: the
+        pipeline passes a callable that asks the height maps whether the strip stands at
+        the cover's height.)
 
     Returns
     -------

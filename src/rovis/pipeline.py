@@ -1886,9 +1886,10 @@ class Detector:
         out, moved, before = [], [], {}
         read = maps if maps and self.cfg.extent.keep_print else None
 
-        def at_height(height: float) -> Callable[[NDArray[np.float64]], bool]:
+        def at_height(height: float, read: list[tuple[HeightMap, NDArray[np.float64]]],
+                      ) -> Callable[[NDArray[np.float64]], bool]:
             def still_cover(strip: NDArray[np.float64]) -> bool:
-                h = map_height(strip, read, self.cfg.trim)  # type: ignore[arg-type]
+                h = map_height(strip, read, self.cfg.trim)
                 return h is not None and abs(h - height) <= self.cfg.trim.tolerance
             return still_cover
 
@@ -1902,11 +1903,10 @@ class Detector:
                         desk_plane, texture)
                     if fitted is not None:
                         pair, book = trial, fitted
-            by_maps = read is not None and book.source == "height map"
             new = fit_pair_extent({"left": pair.left, "right": pair.right}, Q, grads, strength,
                                   desk_plane, self.cfg.extent, gray=ideal,
-                                  still_cover=at_height(float(book.pose.size[2])) if by_maps
-                                  else None)
+                                  still_cover=at_height(float(book.pose.size[2]), read)
+                                  if read is not None and book.source == "height map" else None)
             if new is not None:
                 bigger = _in_eq1_order(replace(pair, left=new["left"], right=new["right"]))
                 bigger, fitted, _ = self._reconstruct_or_why(rig, bigger, desk_plane, texture)
