@@ -54,6 +54,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("a refused grow asked again", ["trim.grow_tries=1"]),
     ("the maps cut again without the found covers", ["heightmap.taken_px=-1"]),
     ("a height-map book's print kept from the extent's cut", ["extent.keep_print=false"]),
+    ("a split the maps read at one height refused", ["split.map_check=false"]),
 ]
 
 

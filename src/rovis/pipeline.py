@@ -46,7 +46,7 @@ from rovis.segment.methods import METHODS, segment
 from rovis.segment.boundary import (Fit, refine_quad, refine_quad_both, refine_quad_fits,
                                     side_evidence)
 from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
-from rovis.split import SplitConfig, join_halves, split_union_heights
+from rovis.split import Split, SplitConfig, join_halves, split_union_heights
 from rovis.track import TrackConfig, follow
 from rovis.trim import (TrimConfig, cut_cover, grow_run, height_profile, map_height, print_grow,
                         trim_side)
@@ -541,7 +541,7 @@ class Detector:
         # beyond the paper: two touching books taken for one cover, split at their seam
         # (after the extent step, which would grow each part over the other again)
         if self.cfg.split.enabled and desk_plane is not None:
-            found = self._split_unions(rig, segs, grads, found, desk_plane, texture)
+            found = self._split_unions(rig, segs, grads, found, desk_plane, texture, read)
             lap("split")
         # beyond the paper: a plain cover at the wrong height, moved to the height map's
         if self.cfg.trim.map_height and read and desk_plane is not None:
@@ -2169,10 +2169,13 @@ class Detector:
                       grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
                       desk_plane: NDArray[np.float64],
                       texture: dict[str, NDArray[np.float32]] | None = None,
+                      maps: list[tuple[HeightMap, NDArray[np.float64]]] | None = None,
                       ) -> list[tuple[Pair, BookDetection]]:
         """Each book that is two touching books' outline replaced by the two
         (:func:`rovis.split.split_union_heights`), where both parts pass the pose checks and
-        their heights differ by ``split.min_step`` or more, or, split by the jog of a side
+        their heights differ by ``split.min_step`` or more (and, with ``maps`` and
+        ``split.map_check``, the height maps do not read both parts less than that apart:
+        :func:`rovis.trim.map_height`), or, split by the jog of a side
         (two books of one height), where both pass the pose checks, each side but the seam
         fitted within ``split.jog_reach_px``; the parts keep the pair's source, ``quality``
         and ``error_px``.
@@ -2202,7 +2205,8 @@ class Detector:
                 if all(book is not None for _, book in made):
                     out += made  # type: ignore[arg-type]
                     continue
-            elif split is not None:
+            elif split is not None and not (maps and self.cfg.split.map_check
+                                            and self._one_height(rig, split, maps)):
                 parts, heights, seams = split.parts, split.heights, split.seams
                 made = [self._fitted_part(rig, grads, pair, part, desk_plane, texture)
                         for part in parts]
@@ -2218,6 +2222,15 @@ class Detector:
                     continue
             out.append((pair, book))
         return out
+
+    def _one_height(self, rig: StereoRig, split: Split,
+                    maps: list[tuple[HeightMap, NDArray[np.float64]]]) -> bool:
+        """Whether the height maps read both parts of ``split`` (:func:`rovis.trim.map_height`)
+        less than ``split.min_step`` apart: one cover, split at a line of its picture whose
+        halves' edges stand at two heights."""
+        h = [map_height(geometry.triangulate(rig.Q_L, rig.Q_R, part["left"], part["right"]),
+                        maps, self.cfg.trim) for part in split.parts]
+        return h[0] is not None and h[1] is not None and abs(h[0] - h[1]) < self.cfg.split.min_step
 
     def _keeps_step(self, made: list[tuple[Pair, BookDetection | None]],
                     heights: tuple[float, float]) -> bool:

@@ -82,6 +82,11 @@ class SplitConfig:
     block's edges below it mostly break onto no straight line, but a clean jog there is a
     seam).
 
+    With ``map_check`` (the detector's split step, where it has the height maps): a split
+    by the step is refused where the maps read both parts (:func:`rovis.trim.map_height`)
+    less than ``min_step`` apart: one cover whose sides' edges stand at two heights (a
+    picture's line taken for a seam), not two books.
+
     The reverse (:func:`join_halves`, with ``join``): two books whose mean heights lie
     within ``join_step`` of each other, sharing a whole side (both its ends within
     ``join_touch``) and lying either side of it, whose outer corners make a rectangle
@@ -112,6 +117,7 @@ class SplitConfig:
     jog_min_share: float = 0.4  # build/t1c's scene 1: 0.60 and 0.48 (docs/stereo.md)
     jog_agree_px: float = 1.0
     jog_reach_px: float = 6.0
+    map_check: bool = True
 
     def __post_init__(self) -> None:
         problems = [name for name, ok in (
