@@ -1885,14 +1885,6 @@ class Detector:
         strength = self._edge_strength(segs)
         out, moved, before = [], [], {}
         read = maps if maps and self.cfg.extent.keep_print else None
-
-        def at_height(height: float, read: list[tuple[HeightMap, NDArray[np.float64]]],
-                      ) -> Callable[[NDArray[np.float64]], bool]:
-            def still_cover(strip: NDArray[np.float64]) -> bool:
-                h = map_height(strip, read, self.cfg.trim)
-                return h is not None and abs(h - height) <= self.cfg.trim.tolerance
-            return still_cover
-
         for pair, book in found:
             if self.cfg.facing.enabled:  # the page block's edge that is the cover's, in both
                 settled = settle_facing_sides({"left": pair.left, "right": pair.right}, Q,
@@ -1905,7 +1897,8 @@ class Detector:
                         pair, book = trial, fitted
             new = fit_pair_extent({"left": pair.left, "right": pair.right}, Q, grads, strength,
                                   desk_plane, self.cfg.extent, gray=ideal,
-                                  still_cover=at_height(float(book.pose.size[2]), read)
+                                  still_cover=_read_at(read, float(book.pose.size[2]),
+                                                       self.cfg.trim)
                                   if read is not None and book.source == "height map" else None)
             if new is not None:
                 bigger = _in_eq1_order(replace(pair, left=new["left"], right=new["right"]))
@@ -2515,6 +2508,17 @@ def _over_any_of(pair: Pair, found: list[tuple[Pair, BookDetection]], limit: flo
     smaller one (:func:`quad_overlap`) in either image (:func:`_over_any` in each)."""
     return any(bool(_over_any(getattr(pair, cam)[None], [getattr(p, cam) for p, _ in found],
                               limit)[0]) for cam in ("left", "right"))
+
+
+def _read_at(maps: list[tuple[HeightMap, NDArray[np.float64]]], height: float,
+             cfg: TrimConfig) -> Callable[[NDArray[np.float64]], bool]:
+    """A test of a region of the desk (world corners (4, 3), in order around it): whether
+    the height maps read it (:func:`rovis.trim.map_height`) within ``cfg.tolerance`` of
+    ``height`` (metres above the desk)."""
+    def reads_at(region: NDArray[np.float64]) -> bool:
+        h = map_height(region, maps, cfg)
+        return h is not None and abs(h - height) <= cfg.tolerance
+    return reads_at
 
 
 def _footprints(hm: HeightMap, Q: NDArray[np.float64], found: list[tuple[Pair, BookDetection]],
