@@ -55,6 +55,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the maps cut again without the found covers", ["heightmap.taken_px=-1"]),
     ("a height-map book's print kept from the extent's cut", ["extent.keep_print=false"]),
     ("a split the maps read at one height refused", ["split.map_check=false"]),
+    ("a height-map book over a segmented one cut back", ["stereo.over_cut=false"]),
 ]
 
 

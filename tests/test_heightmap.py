@@ -360,6 +360,28 @@ def test_a_book_cut_again_over_a_found_one_is_not_taken():
     assert false_books(["heightmap.taken_overlap=1.0"]) == 1
 
 
+@pytest.mark.parametrize("protocol,seed,scene,book", [
+    ("table1", 4, 0, 5),  # build/t1d scene 0: a 29 mm desk-toned cover
+    ("table2", 2, 69, 2),  # build/t2b scene 69: a 37 mm plain cover beside a 31 mm one
+])
+def test_a_map_book_over_a_segmented_one_is_cut_back_not_dropped(protocol, seed, scene, book):
+    # `rovis synth build/t1d --protocol table1 --n 100 --seed 4` and `... build/t2b
+    # --protocol table2 --n 128 --seed 2`: the maps' rectangle runs 25-74 mm on over a
+    # neighbour the segmentations found, and the book over it was dropped
+    # (stereo.over_segmented); cut back to where that cover ends (stereo.over_cut), it is
+    # the book
+    sc, r = dataset_scene(protocol, seed, scene)
+    truth = np.asarray(r.truth["books"][book]["center"])
+
+    def nearest(settings: list[str]) -> float:
+        res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
+        return min((float(np.abs(o.pose.center - truth).max()) for o in res.objects),
+                   default=np.inf)
+
+    assert nearest([]) < 0.008  # m, along each axis
+    assert nearest(["stereo.over_cut=false"]) > 0.05  # m: dropped
+
+
 def test_bad_settings_are_refused():
     with pytest.raises(ValueError, match="taken_overlap"):
         HeightMapConfig(taken_overlap=1.5)

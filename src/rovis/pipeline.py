@@ -595,7 +595,7 @@ class Detector:
         # beyond the paper: a cover another pass found over one both segmentations found
         # (after the small ones go: a label the segmentations found is no evidence)
         if self.cfg.stereo.over_segmented > 0 and desk_plane is not None:
-            found, over = self._without_overlaps(found)
+            found, over = self._without_overlaps(found, rig, desk_plane, texture)
             if over:
                 dropped += over
                 warnings.append(f"{len(over)} cover(s) over a cover the segmentations found "
@@ -2336,6 +2336,9 @@ class Detector:
         return kept, printed
 
     def _without_overlaps(self, found: list[tuple[Pair, BookDetection]],
+                          rig: StereoRig | None = None,
+                          desk_plane: NDArray[np.float64] | None = None,
+                          texture: dict[str, NDArray[np.float32]] | None = None,
                           ) -> tuple[list[tuple[Pair, BookDetection]],
                                      list[tuple[str, NDArray[np.float64], NDArray[np.float64]]]]:
         """The books, less each not found by both segmentations with every side seen that
@@ -2348,18 +2351,63 @@ class Detector:
         evidence (as in :meth:`_fit_extents`). On build/t2's scenes 56 and 58 a false
         "book" (294 × 141 and 131 × 164 mm) from the candidate pool lay over a book the
         segmentations found by 22 and 30 % of the smaller quad; the touching books found
-        on the dev sets overlap by at most 12 % in one image."""
+        on the dev sets overlap by at most 12 % in one image.
+
+        With ``stereo.over_cut``, a book from the height map over one such book only is cut
+        back instead (:meth:`_cut_off`) and kept where it then passes the pose checks and
+        lies over none: the maps' rectangle often runs on over a neighbour of about its
+        height (one slab of the sweeps). Needs ``rig`` and ``desk_plane``."""
         limit = self.cfg.stereo.over_segmented
-        segmented = [pair for pair, book in found if _segmented(pair, book)]
         kept, over = [], []
+
+        def over_one(pair: Pair) -> list[tuple[Pair, BookDetection]]:
+            return [(p, b) for p, b in found if _segmented(p, b)
+                    and quad_overlap(pair.left, p.left) > limit
+                    and quad_overlap(pair.right, p.right) > limit]
+
         for pair, book in found:
-            if not _segmented(pair, book) and any(
-                    quad_overlap(pair.left, s.left) > limit
-                    and quad_overlap(pair.right, s.right) > limit for s in segmented):
-                over.append(("overlaps", pair.left, pair.right))
-            else:
+            under = over_one(pair) if not _segmented(pair, book) else []
+            if not under:
                 kept.append((pair, book))
+                continue
+            cut = (self._cut_off(rig, pair, book, under[0][1], desk_plane, texture)
+                   if len(under) == 1 and book.source == "height map" and rig is not None
+                   and desk_plane is not None and self.cfg.stereo.over_cut else None)
+            if cut is not None and not over_one(cut[0]):
+                kept.append(cut)
+            else:
+                over.append(("overlaps", pair.left, pair.right))
         return kept, over
+
+    def _cut_off(self, rig: StereoRig, pair: Pair, book: BookDetection, other: BookDetection,
+                 desk_plane: NDArray[np.float64],
+                 texture: dict[str, NDArray[np.float32]] | None,
+                 ) -> tuple[Pair, BookDetection] | None:
+        """``book`` with a side pulled in to where ``other``'s cover ends, seen from above
+        (``other``'s corners measured in ``book``'s plane, along its sides): of the sides
+        whose pull leaves ``min_cover_side`` or more, the one with the shortest pull, where
+        what is left passes the pose checks; else None."""
+        P = np.asarray(book.corners_world, dtype=np.float64)
+        S = np.asarray(other.corners_world, dtype=np.float64)
+        up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+        best = None
+        for s in range(4):
+            a, b = P[s], P[(s + 1) % 4]
+            inward = P[(s + 2) % 4] - b  # along the neighbouring side, into the cover
+            depth = float(np.linalg.norm(inward))
+            inward = inward - (inward @ up) * up
+            inward /= max(float(np.linalg.norm(inward)), 1e-12)
+            reach = float(((S - a) @ inward).max())  # how far into the cover `other` goes
+            if not 0.0 < reach < depth - self.cfg.min_cover_side:
+                continue
+            if best is None or reach < best[0]:
+                best = (reach, s)
+        if best is None:
+            return None
+        C = _moved(P, best[1], np.array([-best[0]]))[0]
+        trial, fitted, _ = self._reconstruct_or_why(rig, _pair_at(rig, pair, C), desk_plane,
+                                                    texture)
+        return None if fitted is None else (trial, fitted)
 
     def _without_small(self, found: list[tuple[Pair, BookDetection]], *,
                        small_open_only: bool = False,
