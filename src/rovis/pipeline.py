@@ -2355,8 +2355,9 @@ class Detector:
 
         With ``stereo.over_cut``, a book from the height map over one such book only is cut
         back instead (:meth:`_cut_off`) and kept where it then passes the pose checks and
-        lies over none: the maps' rectangle often runs on over a neighbour of about its
-        height (one slab of the sweeps). Needs ``rig`` and ``desk_plane``."""
+        lies over no other book found by that share: the maps' rectangle often runs on over
+        a neighbour of about its height (one slab of the sweeps). Needs ``rig`` and
+        ``desk_plane``."""
         limit = self.cfg.stereo.over_segmented
         kept, over = [], []
 
@@ -2373,7 +2374,9 @@ class Detector:
             cut = (self._cut_off(rig, pair, book, under[0][1], desk_plane, texture)
                    if len(under) == 1 and book.source == "height map" and rig is not None
                    and desk_plane is not None and self.cfg.stereo.over_cut else None)
-            if cut is not None and not over_one(cut[0]):
+            if cut is not None and not any(
+                    p is not pair and quad_overlap(cut[0].left, p.left) > limit
+                    and quad_overlap(cut[0].right, p.right) > limit for p, _ in found):
                 kept.append(cut)
             else:
                 over.append(("overlaps", pair.left, pair.right))
@@ -2384,9 +2387,11 @@ class Detector:
                  texture: dict[str, NDArray[np.float32]] | None,
                  ) -> tuple[Pair, BookDetection] | None:
         """``book`` with a side pulled in to where ``other``'s cover ends, seen from above
-        (``other``'s corners measured in ``book``'s plane, along its sides): of the sides
-        whose pull leaves ``min_cover_side`` or more, the one with the shortest pull, where
-        what is left passes the pose checks; else None."""
+        (``other``'s corners measured in ``book``'s plane, along its sides), or None. Only
+        a side ``other`` reaches across (some of its corners beyond the side, some inside:
+        a neighbour the book ran on over, not a cover lying within it) is pulled; of those
+        whose pull leaves ``min_cover_side`` or more, the shortest pull is tried, and kept
+        where what is left passes the pose checks and is ``min_cover_side`` wide or more."""
         P = np.asarray(book.corners_world, dtype=np.float64)
         S = np.asarray(other.corners_world, dtype=np.float64)
         up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
@@ -2397,9 +2402,10 @@ class Detector:
             depth = float(np.linalg.norm(inward))
             inward = inward - (inward @ up) * up
             inward /= max(float(np.linalg.norm(inward)), 1e-12)
-            reach = float(((S - a) @ inward).max())  # how far into the cover `other` goes
-            if not 0.0 < reach < depth - self.cfg.min_cover_side:
-                continue
+            into = (S - a) @ inward  # each of its corners' depth into the cover
+            reach = float(into.max())  # how far into the cover `other` goes
+            if into.min() >= 0.0 or not 0.0 < reach < depth - self.cfg.min_cover_side:
+                continue  # not across this side, or the pull leaves too little
             if best is None or reach < best[0]:
                 best = (reach, s)
         if best is None:
@@ -2407,7 +2413,9 @@ class Detector:
         C = _moved(P, best[1], np.array([-best[0]]))[0]
         trial, fitted, _ = self._reconstruct_or_why(rig, _pair_at(rig, pair, C), desk_plane,
                                                     texture)
-        return None if fitted is None else (trial, fitted)
+        if fitted is None or min(fitted.pose.size[:2]) < self.cfg.min_cover_side:
+            return None
+        return trial, fitted
 
     def _without_small(self, found: list[tuple[Pair, BookDetection]], *,
                        small_open_only: bool = False,

@@ -60,8 +60,9 @@ class StereoConfig:
     # where it overlaps one they found by more than this share of the smaller quad in both
     # images (0: never; Detector._without_overlaps)
     over_segmented: float = 0.15
-    # ...but a height-map book over one such book only is cut back to where that cover ends
-    # and kept if it then passes the pose checks (its print stands out of the desk there)
+    # ...but a height-map book over one such book only, across a side of it, is cut back to
+    # where that cover ends and kept if it then passes the pose checks and lies over no other
+    # book (its print stands out of the desk there: Detector._cut_off)
     over_cut: bool = True
     # Without the desk plane the search fixes less (the plane comes from the quad itself,
     # the depth from 0.2 to 5 m): only a quad its own image backs this well (mean edge
