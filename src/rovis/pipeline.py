@@ -2361,22 +2361,24 @@ class Detector:
         limit = self.cfg.stereo.over_segmented
         kept, over = [], []
 
-        def over_one(pair: Pair) -> list[tuple[Pair, BookDetection]]:
-            return [(p, b) for p, b in found if _segmented(p, b)
-                    and quad_overlap(pair.left, p.left) > limit
+        def lying_over(pair: Pair, books: list[tuple[Pair, BookDetection]],
+                       ) -> list[tuple[Pair, BookDetection]]:
+            # the books of `books` that `pair` lies over by more than `limit` in both images
+            return [(p, b) for p, b in books
+                    if quad_overlap(pair.left, p.left) > limit
                     and quad_overlap(pair.right, p.right) > limit]
 
+        segmented = [(p, b) for p, b in found if _segmented(p, b)]
         for pair, book in found:
-            under = over_one(pair) if not _segmented(pair, book) else []
+            under = lying_over(pair, segmented) if not _segmented(pair, book) else []
             if not under:
                 kept.append((pair, book))
                 continue
             cut = (self._cut_off(rig, pair, book, under[0][1], desk_plane, texture)
                    if len(under) == 1 and book.source == "height map" and rig is not None
                    and desk_plane is not None and self.cfg.stereo.over_cut else None)
-            if cut is not None and not any(
-                    p is not pair and quad_overlap(cut[0].left, p.left) > limit
-                    and quad_overlap(cut[0].right, p.right) > limit for p, _ in found):
+            if cut is not None and not lying_over(cut[0], [(p, b) for p, b in found
+                                                           if p is not pair]):
                 kept.append(cut)
             else:
                 over.append(("overlaps", pair.left, pair.right))
@@ -2400,8 +2402,7 @@ class Detector:
             a, b = P[s], P[(s + 1) % 4]
             inward = P[(s + 2) % 4] - b  # along the neighbouring side, into the cover
             depth = float(np.linalg.norm(inward))
-            inward = inward - (inward @ up) * up
-            inward /= max(float(np.linalg.norm(inward)), 1e-12)
+            inward = _unit(inward - (inward @ up) * up)  # level with the desk
             into = (S - a) @ inward  # each of its corners' depth into the cover
             reach = float(into.max())  # how far into the cover `other` goes
             if into.min() >= 0.0 or not 0.0 < reach < depth - self.cfg.min_cover_side:
