@@ -56,6 +56,8 @@ STEPS: list[tuple[str, list[str]]] = [
     ("a height-map book's print kept from the extent's cut", ["extent.keep_print=false"]),
     ("a split the maps read at one height refused", ["split.map_check=false"]),
     ("a height-map book over a segmented one cut back", ["stereo.over_cut=false"]),
+    ("two overlapping covers, the strip read at one's height: the other cut back",
+     ["stereo.height_cut=0"]),
 ]
 
 

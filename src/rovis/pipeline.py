@@ -53,8 +53,8 @@ from rovis.trim import (TrimConfig, cut_cover, grow_run, height_profile, map_hei
 from rovis.stereo import (Match, PoolPairs, StereoConfig, _point_segment_distance,
                           find_in_other_view, flat_rectangle, match_quads, pool_pairs,
                           side_lengths_and_corner_cos)
-from rovis.sweep import (Sweep, SweepConfig, contradicts, find_by_print, high_pass, on_plane,
-                         print_goes_on, print_height, sweep_heights, texture_height)
+from rovis.sweep import (Sweep, SweepConfig, _plane_frame, contradicts, find_by_print, high_pass,
+                         on_plane, print_goes_on, print_height, sweep_heights, texture_height)
 from rovis.undistort import IdealView
 
 
@@ -600,6 +600,12 @@ class Detector:
                 dropped += over
                 warnings.append(f"{len(over)} cover(s) over a cover the segmentations found "
                                 "dropped (overlaps)")
+        # beyond the paper: two covers that overlap on the desk, the strip read at one's
+        # height: the other cut back off it
+        if self.cfg.stereo.height_cut > 0 and read and desk_plane is not None:
+            found = self._cut_by_height(rig, found, desk_plane, texture, read, grads,
+                                        self._edge_strength(segs))
+            lap("trim")
         info = {cam: SegmentationInfo(T_H=segs[cam].T_H, T_HG=segs[cam].T_HG, y=segs[cam].y,
                                       iterations=segs[cam].iterations, n_quads=len(segs[cam]))
                 for cam in ("left", "right")}
@@ -2383,6 +2389,90 @@ class Detector:
             else:
                 over.append(("overlaps", pair.left, pair.right))
         return kept, over
+
+    def _cut_by_height(self, rig: StereoRig, found: list[tuple[Pair, BookDetection]],
+                       desk_plane: NDArray[np.float64],
+                       texture: dict[str, NDArray[np.float32]] | None,
+                       read: list[tuple[HeightMap, NDArray[np.float64]]],
+                       grads: dict[str, Gradients], strength: dict[str, float],
+                       ) -> list[tuple[Pair, BookDetection]]:
+        """The books, each that runs on over another where that one's cover is cut back off
+        it (:meth:`_cut_off`).
+
+        Two books lie side by side, never one partly over the other: where two found
+        covers overlap on the desk by a strip ``stereo.height_cut`` wide or more (metres,
+        the narrower side of the overlap's smallest rectangle), the strip is one cover's.
+        It is taken for book B's, and A is cut back off it, where:
+
+        - the height maps read the strip (:func:`rovis.trim.map_height`), laid at B's
+          height, within ``trim.tolerance`` of it, and laid at A's, at a height (not
+          none) more than that from A's;
+        - the print, where there is one (:func:`rovis.sweep.sweep_heights`), matches
+          between the images better at B's height than at A's by more than
+          ``stereo.height_cut_gap`` with the strip laid at either height;
+        - B's side nearest the strip shows a step along ``stereo.height_cut_support`` or
+          more of it in both images (:func:`rovis.segment.boundary.side_evidence`, half
+          the Canny low threshold): B's cover ends there.
+
+        Each is read with the strip laid at each book's height, since a strip laid at one
+        height falls in each image where that book would show it. A book is cut once at
+        most, by a book not cut itself; one whose cut fails the pose checks is kept as
+        it was. ``strength``: each camera's Canny low threshold."""
+        cfg = self.cfg.stereo
+        on_desk, up, e1, e2 = _plane_frame(desk_plane)
+        tol = self.cfg.trim.tolerance
+        out = list(found)
+        cut: set[int] = set()
+
+        def on_desk_2d(P: NDArray[np.float64]) -> NDArray[np.float32]:
+            d = P - on_desk  # (4, 3) world corners, as coordinates in the desk plane
+            return np.stack([d @ e1, d @ e2], axis=1).astype(np.float32)
+
+        def owns(A: BookDetection, B: BookDetection, strip: NDArray[np.float64]) -> bool:
+            # whether the strip (4, 2, desk coordinates) is B's cover, not A's
+            hA, hB = float(A.pose.size[2]), float(B.pose.size[2])
+            laid = {h: on_desk + strip[:, :1] * e1 + strip[:, 1:] * e2 + h * up
+                    for h in (hA, hB)}
+            mA, mB = (map_height(laid[h], read, self.cfg.trim) for h in (hA, hB))
+            if mB is None or abs(mB - hB) > tol or mA is None or abs(mA - hA) <= tol:
+                return False
+            if texture is not None:
+                for R in laid.values():
+                    sweep = sweep_heights(texture["left"], texture["right"], rig.Q_L,
+                                          rig.Q_R, geometry.project(rig.Q_L, R), desk_plane,
+                                          [hA, hB])
+                    if sweep is not None and sweep.ncc[1] <= sweep.ncc[0] + cfg.height_cut_gap:
+                        return False
+            # B's side nearest the strip, seen as a step in both images
+            corners = on_desk_2d(np.asarray(B.corners_world)).astype(np.float64)
+            middle = strip.mean(axis=0)
+            ab = np.roll(corners, -1, axis=0) - corners
+            off = np.abs(np.cross(ab, middle - corners)) / np.linalg.norm(ab, axis=1)
+            side = int(np.argmin(off))
+            return all(side_evidence(grads[cam], geometry.project(Q, B.corners_world),
+                                     0.5 * strength[cam], reach_px=2.0)[side]
+                       >= cfg.height_cut_support
+                       for cam, Q in (("left", rig.Q_L), ("right", rig.Q_R)))
+
+        for a in range(len(out)):
+            for b in range(len(out)):
+                if a == b or a in cut or b in cut:
+                    continue
+                (pair, A), (_, B) = out[a], out[b]
+                area, poly = cv2.intersectConvexConvex(
+                    on_desk_2d(np.asarray(A.corners_world)),
+                    on_desk_2d(np.asarray(B.corners_world)))
+                if area <= 0 or poly is None:
+                    continue
+                box = cv2.minAreaRect(poly.reshape(-1, 2))
+                if min(box[1]) < cfg.height_cut or not owns(
+                        A, B, cv2.boxPoints(box).astype(np.float64)):
+                    continue
+                done = self._cut_off(rig, pair, A, B, desk_plane, texture)
+                if done is not None:
+                    out[a] = done
+                    cut.add(a)
+        return out
 
     def _cut_off(self, rig: StereoRig, pair: Pair, book: BookDetection, other: BookDetection,
                  desk_plane: NDArray[np.float64],

@@ -64,6 +64,13 @@ class StereoConfig:
     # where that cover ends and kept if it then passes the pose checks and lies over no other
     # book (its print stands out of the desk there: Detector._cut_off)
     over_cut: bool = True
+    # Two covers found overlapping on the desk by a strip this wide or more (metres; 0:
+    # never): where the height maps and the print read the strip at one's height and not
+    # the other's, and the first's side there shows a step in both images, the other is
+    # cut back off it (Detector._cut_by_height)
+    height_cut: float = 0.008
+    height_cut_gap: float = 0.05  # NCC, at one height against the other
+    height_cut_support: float = 0.6  # share of that side
     # Without the desk plane the search fixes less (the plane comes from the quad itself,
     # the depth from 0.2 to 5 m): only a quad its own image backs this well (mean edge
     # support of its sides) is looked for. On the real pairs the chess sheet's quads had
