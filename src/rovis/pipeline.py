@@ -602,10 +602,11 @@ class Detector:
                                 "dropped (overlaps)")
         # beyond the paper: two covers that overlap on the desk, the strip read at one's
         # height: the other cut back off it
-        if self.cfg.stereo.height_cut > 0 and read and desk_plane is not None:
+        if self.cfg.stereo.height_cut > 0 and read and texture is not None \
+                and desk_plane is not None:
             found = self._cut_by_height(rig, found, desk_plane, texture, read, grads,
                                         self._edge_strength(segs))
-            lap("trim")
+        lap("overlaps")
         info = {cam: SegmentationInfo(T_H=segs[cam].T_H, T_HG=segs[cam].T_HG, y=segs[cam].y,
                                       iterations=segs[cam].iterations, n_quads=len(segs[cam]))
                 for cam in ("left", "right")}
@@ -2392,12 +2393,12 @@ class Detector:
 
     def _cut_by_height(self, rig: StereoRig, found: list[tuple[Pair, BookDetection]],
                        desk_plane: NDArray[np.float64],
-                       texture: dict[str, NDArray[np.float32]] | None,
+                       texture: dict[str, NDArray[np.float32]],
                        read: list[tuple[HeightMap, NDArray[np.float64]]],
                        grads: dict[str, Gradients], strength: dict[str, float],
                        ) -> list[tuple[Pair, BookDetection]]:
-        """The books, each that runs on over another where that one's cover is cut back off
-        it (:meth:`_cut_off`).
+        """The books, each cut back off a neighbour it runs on over (:meth:`_cut_off`)
+        where the strip between them is that neighbour's cover.
 
         Two books lie side by side, never one partly over the other: where two found
         covers overlap on the desk by a strip ``stereo.height_cut`` wide or more (metres,
@@ -2407,48 +2408,59 @@ class Detector:
         - the height maps read the strip (:func:`rovis.trim.map_height`), laid at B's
           height, within ``trim.tolerance`` of it, and laid at A's, at a height (not
           none) more than that from A's;
-        - the print, where there is one (:func:`rovis.sweep.sweep_heights`), matches
-          between the images better at B's height than at A's by more than
-          ``stereo.height_cut_gap`` with the strip laid at either height;
+        - the print matches between the images (:func:`rovis.sweep.sweep_heights`, the
+          whole strip) better at B's height than at A's by more than
+          ``stereo.height_cut_gap``, with the strip laid at either height (a strip too
+          thin to sweep is not cut);
         - B's side nearest the strip shows a step along ``stereo.height_cut_support`` or
           more of it in both images (:func:`rovis.segment.boundary.side_evidence`, half
-          the Canny low threshold): B's cover ends there.
+          the Canny low threshold ``strength``): B's cover ends there.
 
         Each is read with the strip laid at each book's height, since a strip laid at one
-        height falls in each image where that book would show it. A book is cut once at
-        most, by a book not cut itself; one whose cut fails the pose checks is kept as
-        it was. ``strength``: each camera's Canny low threshold."""
+        height falls in each image where that book would show it. A book that owns a strip
+        is not cut, and one is cut once at most; the cut is kept where it passes the pose
+        checks and no longer overlaps B by that strip (else, or where no side of A is
+        one B reaches across, A is kept as it was)."""
         cfg = self.cfg.stereo
         on_desk, up, e1, e2 = _plane_frame(desk_plane)
         tol = self.cfg.trim.tolerance
         out = list(found)
         cut: set[int] = set()
+        owners: set[int] = set()
 
         def on_desk_2d(P: NDArray[np.float64]) -> NDArray[np.float32]:
             d = P - on_desk  # (4, 3) world corners, as coordinates in the desk plane
             return np.stack([d @ e1, d @ e2], axis=1).astype(np.float32)
 
+        def strip_of(A: BookDetection, B: BookDetection) -> NDArray[np.float64] | None:
+            # the smallest rectangle (4, 2; desk coordinates, in order) around the two
+            # covers' overlap on the desk, where its narrower side is height_cut or more
+            area, poly = cv2.intersectConvexConvex(on_desk_2d(np.asarray(A.corners_world)),
+                                                   on_desk_2d(np.asarray(B.corners_world)))
+            if area <= 0 or poly is None:
+                return None
+            box = cv2.minAreaRect(poly.reshape(-1, 2))
+            return cv2.boxPoints(box).astype(np.float64) if min(box[1]) >= cfg.height_cut \
+                else None
+
         def owns(A: BookDetection, B: BookDetection, strip: NDArray[np.float64]) -> bool:
-            # whether the strip (4, 2, desk coordinates) is B's cover, not A's
+            # whether the strip is B's cover, not A's
             hA, hB = float(A.pose.size[2]), float(B.pose.size[2])
             laid = {h: on_desk + strip[:, :1] * e1 + strip[:, 1:] * e2 + h * up
                     for h in (hA, hB)}
             mA, mB = (map_height(laid[h], read, self.cfg.trim) for h in (hA, hB))
             if mB is None or abs(mB - hB) > tol or mA is None or abs(mA - hA) <= tol:
                 return False
-            if texture is not None:
-                for R in laid.values():
-                    sweep = sweep_heights(texture["left"], texture["right"], rig.Q_L,
-                                          rig.Q_R, geometry.project(rig.Q_L, R), desk_plane,
-                                          [hA, hB])
-                    if sweep is not None and sweep.ncc[1] <= sweep.ncc[0] + cfg.height_cut_gap:
-                        return False
-            # B's side nearest the strip, seen as a step in both images
+            for R in laid.values():
+                sweep = sweep_heights(texture["left"], texture["right"], rig.Q_L, rig.Q_R,
+                                      geometry.project(rig.Q_L, R), desk_plane, [hA, hB],
+                                      inset=0.0)
+                if sweep is None or sweep.ncc[1] <= sweep.ncc[0] + cfg.height_cut_gap:
+                    return False
+            # B's side nearest the strip's middle, seen as a step in both images
             corners = on_desk_2d(np.asarray(B.corners_world)).astype(np.float64)
-            middle = strip.mean(axis=0)
-            ab = np.roll(corners, -1, axis=0) - corners
-            off = np.abs(np.cross(ab, middle - corners)) / np.linalg.norm(ab, axis=1)
-            side = int(np.argmin(off))
+            side = int(np.argmin(_point_segment_distance(strip.mean(axis=0), corners,
+                                                         np.roll(corners, -1, axis=0))))
             return all(side_evidence(grads[cam], geometry.project(Q, B.corners_world),
                                      0.5 * strength[cam], reach_px=2.0)[side]
                        >= cfg.height_cut_support
@@ -2456,22 +2468,17 @@ class Detector:
 
         for a in range(len(out)):
             for b in range(len(out)):
-                if a == b or a in cut or b in cut:
+                if a == b or a in cut or a in owners or b in cut:
                     continue
                 (pair, A), (_, B) = out[a], out[b]
-                area, poly = cv2.intersectConvexConvex(
-                    on_desk_2d(np.asarray(A.corners_world)),
-                    on_desk_2d(np.asarray(B.corners_world)))
-                if area <= 0 or poly is None:
-                    continue
-                box = cv2.minAreaRect(poly.reshape(-1, 2))
-                if min(box[1]) < cfg.height_cut or not owns(
-                        A, B, cv2.boxPoints(box).astype(np.float64)):
+                strip = strip_of(A, B)
+                if strip is None or not owns(A, B, strip):
                     continue
                 done = self._cut_off(rig, pair, A, B, desk_plane, texture)
-                if done is not None:
+                if done is not None and strip_of(done[1], B) is None:
                     out[a] = done
                     cut.add(a)
+                    owners.add(b)
         return out
 
     def _cut_off(self, rig: StereoRig, pair: Pair, book: BookDetection, other: BookDetection,
