@@ -2417,10 +2417,11 @@ class Detector:
           the Canny low threshold ``strength``): B's cover ends there.
 
         Each is read with the strip laid at each book's height, since a strip laid at one
-        height falls in each image where that book would show it. A book that owns a strip
-        is not cut, and one is cut once at most; the cut is kept where it passes the pose
-        checks and no longer overlaps B by that strip (else, or where no side of A is
-        one B reaches across, A is kept as it was)."""
+        height falls in each image where that book would show it. The pairs are taken in
+        the order of ``found``: a book is cut once at most, and not after it has owned a
+        strip; the cut is kept where it passes the pose checks and no longer overlaps B by
+        such a strip (else, or where no side of A is one B reaches across, A is kept as it
+        was)."""
         cfg = self.cfg.stereo
         on_desk, up, e1, e2 = _plane_frame(desk_plane)
         tol = self.cfg.trim.tolerance
