@@ -48,8 +48,8 @@ from rovis.segment.boundary import (Fit, refine_quad, refine_quad_both, refine_q
 from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
 from rovis.split import Split, SplitConfig, join_halves, split_union_heights
 from rovis.track import TrackConfig, follow
-from rovis.trim import (TrimConfig, cut_cover, grow_run, height_profile, map_height, print_grow,
-                        trim_side)
+from rovis.trim import (TrimConfig, cut_cover, grow_run, height_profile, lateral_grow, map_height,
+                        print_grow, trim_side)
 from rovis.stereo import (Match, PoolPairs, StereoConfig, _point_segment_distance,
                           find_in_other_view, flat_rectangle, match_quads, pool_pairs,
                           side_lengths_and_corner_cos)
@@ -1592,9 +1592,13 @@ class Detector:
             limit = grow_run(P, s, height, maps, cfg)
             if limit <= 0:
                 return 0.0
-            return _grow_side(P, s, Q, grads, strength, _drop(P, desk_plane), extent,
-                              limit=min(limit + cfg.grow_margin, below),
-                              continuation=cfg.grow_continuation)
+            moved = _grow_side(P, s, Q, grads, strength, _drop(P, desk_plane), extent,
+                               limit=min(limit + cfg.grow_margin, below),
+                               continuation=cfg.grow_continuation)
+            if moved == 0.0 and cfg.lateral_grow and texture is not None:
+                moved = lateral_grow(P, s, height, Q, grads, strength, texture, desk_plane,
+                                     extent, cfg, limit=min(limit, below))
+            return moved
 
         return self._with_sides_grown(rig, grads, strength, found, desk_plane, texture, move,
                                       strip_overlap=cfg.print_max_overlap)

@@ -30,7 +30,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rovis import geometry
-from rovis.extent import ExtentConfig, _block_shows, _drop, _hits, _moved, _side_scores, _unit
+from rovis.extent import (ExtentConfig, _block_shows, _drop, _edge_height, _hits, _moved,
+                          _side_scores, _unit)
 from rovis.heightmap import HeightMap
 from rovis.segment.edges import Gradients
 from rovis.sweep import Sweep, sweep_heights
@@ -95,6 +96,12 @@ class TrimConfig:
     Either grow's move refused by these guards (the strip over another book, the new side
     on the desk, no edge at its page block's foot) is asked again, ending ``grow_retry``
     short of it, for a nearer edge: ``grow_tries`` asks in all (1: the first move only).
+
+    The grow to the neighbours' ends (``lateral_grow``, :func:`lateral_grow`; stop 51):
+    where the maps' grow finds no edge beyond a side (a picture cover's edge of the
+    desk's tone), the side moves to where both neighbouring sides stop being edges, if
+    the maps go on ``lateral_run`` or more at the cover's height; the settings ``lateral_*``
+    are that function's.
     """
 
     enabled: bool = True
@@ -136,6 +143,15 @@ class TrimConfig:
     print_continuation: float = 0.5
     grow_tries: int = 3  # asks for a side's grow, a refused move's nearer edge after it
     grow_retry: float = 0.005  # how far short of a refused move the next ask ends
+    lateral_grow: bool = True
+    lateral_run: float = 0.03  # the maps' spill beyond a cover's edge is 5-20 mm
+    lateral_start: float = 0.003  # at a cover's own corner its sides end
+    lateral_gap: float = 0.006
+    lateral_spread: float = 0.012
+    lateral_back: float = 0.003  # a corner's edge fades a pixel or two short of it
+    lateral_ahead: float = 0.008
+    lateral_min: float = 0.032  # a shadow or the desk's grain carries a side on 2-3 cm
+    lateral_sigmas: float = 3.0
 
     def __post_init__(self) -> None:
         problems = [name for name, ok in (
@@ -156,6 +172,9 @@ class TrimConfig:
              and self.print_beyond > 0 and self.print_piece > 0),
             ("print_edges", self.print_edges >= 1),
             ("grow_tries", self.grow_tries >= 1), ("grow_retry", self.grow_retry > 0),
+            ("lateral_*", min(self.lateral_run, self.lateral_start, self.lateral_gap,
+                              self.lateral_spread, self.lateral_back, self.lateral_ahead,
+                              self.lateral_min, self.lateral_sigmas) >= 0),
             ("print_continuation", 0 <= self.print_continuation <= 1
              and 0 <= self.print_max_overlap <= 1 and -1 <= self.print_min_ncc <= 1
              and -2 <= self.print_margin <= 2)) if not ok]
@@ -167,6 +186,7 @@ class TrimConfig:
                              "in [0, 1]; print_reach, print_min, print_near, print_beyond "
                              "and print_piece positive, print_foot_margin >= 0, "
                              "print_edges >= 1, grow_tries >= 1, grow_retry > 0, "
+                             "the lateral_* settings >= 0, "
                              "print_min_ncc in "
                              "[-1, 1], print_margin in [-2, 2]; min_samples from 1 to samples; "
                              "grow_margin of any sign; the "
@@ -569,3 +589,98 @@ def _continued(P: NDArray[np.float64], moved: NDArray[np.float64], s: int,
                         min_strength[cam], ext.max_angle_deg)
             best = max(best, float(hit.mean()))
     return best
+
+
+def lateral_grow(P: NDArray[np.float64], s: int, height: float,
+                 Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
+                 min_strength: dict[str, float], texture: dict[str, NDArray[np.float32]],
+                 desk_plane: NDArray[np.float64], ext: ExtentConfig,
+                 cfg: TrimConfig = TrimConfig(), *, limit: float = np.inf) -> float:
+    """How far side ``s`` of cover ``P`` (4, 3) moves out to where its neighbouring sides
+    end (metres; 0: not at all), for a cover whose own edge there shows no step (a picture
+    with the desk's tone along it); ``limit``: how far the maps go on at its height beyond
+    the side (:func:`grow_run`).
+
+    Such a cover still shows its two neighbouring sides up to its corners.
+
+    1. The maps must go on at least ``cfg.lateral_run`` (their spill past a cover's edge is
+       5-20 mm).
+    2. Each neighbouring side, continued beyond side ``s``, is an edge
+       (:func:`rovis.extent._hits`, in either image) from within ``cfg.lateral_start`` of
+       the side out, misses up to ``cfg.lateral_gap`` bridged, along at least
+       ``ext.min_support`` of it: its end is the end of that run, or the farthest offset
+       looked at (``limit`` plus ``cfg.lateral_ahead``). The two ends must lie within
+       ``cfg.lateral_spread`` of each other.
+    3. The side moves to the strongest step both images show
+       (:func:`rovis.extent._side_scores`) from ``cfg.lateral_back`` short of the farther
+       end (a corner's edge fades a pixel or two short of it) to ``cfg.lateral_ahead``
+       beyond it, no farther than ``limit`` plus ``cfg.lateral_ahead``, and at least
+       ``cfg.lateral_min`` out; where the page block below the side shows, at least
+       ``cfg.print_foot_margin`` beyond where its foot would show
+       (:func:`_foot_offset`): the block's upright edges go on from the corners.
+    4. Stereo must not place the edge there clearly off the cover's height
+       (:func:`rovis.extent._edge_height`: more than ``ext.weak_height`` and
+       ``cfg.lateral_sigmas`` of its standard deviation), and the strip added (5 mm left
+       out at either edge) must line up between the images at the cover's height
+       (:func:`rovis.sweep.sweep_heights`: best within the trim's tolerance, and
+       ``cfg.print_margin`` above the NCC at the desk's height).
+    """
+    a, b = s, (s + 1) % 4
+    if limit < cfg.lateral_run:
+        return 0.0
+    room = min(limit + cfg.lateral_ahead,
+               ext.max_side - max(np.linalg.norm(P[a] - P[(a - 1) % 4]),
+                                  np.linalg.norm(P[b] - P[(b + 1) % 4])))
+    if room < cfg.lateral_min:
+        return 0.0
+    d = np.arange(ext.step, room + 1e-9, ext.step)
+    moved = _moved(P, s, d)  # (D, 4, 3)
+    # step 2: each neighbouring side's run of edge hits, in either image
+    hits = np.zeros((2, len(d)), bool)
+    for cam in ("left", "right"):
+        out = np.stack([geometry.project(Q[cam], moved[:, k]) for k in (a, b)])
+        start = np.stack([geometry.project(Q[cam], P[k][None]) for k in (a, b)])
+        hits |= _hits(grads[cam], start, out, min_strength[cam], ext.max_angle_deg)
+    gap = int(round(cfg.lateral_gap / ext.step))
+    ends = []
+    for hit in hits:
+        idx = np.flatnonzero(hit)
+        if len(idx) == 0 or d[idx[0]] > cfg.lateral_start:
+            return 0.0  # (a cover's own corner: its sides end there)
+        breaks = np.flatnonzero(np.diff(idx) > gap + 1)
+        end = int(idx[breaks[0]] if len(breaks) else idx[-1])
+        if hit[:end + 1].mean() < ext.min_support:
+            return 0.0
+        ends.append(float(d[end]))
+    if max(ends) - min(ends) > cfg.lateral_spread:
+        return 0.0
+    # step 3: the strongest step near the farther end
+    near = np.flatnonzero((d >= max(ends) - cfg.lateral_back)
+                          & (d <= max(ends) + cfg.lateral_ahead))
+    if len(near) == 0:
+        return 0.0
+    _, strength = _side_scores(moved[near], a, b, Q, grads, min_strength, ext)
+    move = float(d[near[int(np.argmax(strength))]])
+    least = cfg.lateral_min
+    drop = _drop(P, desk_plane)
+    if _block_shows(P, s, Q, drop):
+        least = max(least, _foot_offset(P, s, Q, drop) + cfg.print_foot_margin)
+    if not least <= move <= limit + cfg.lateral_ahead:
+        return 0.0
+    # step 4: the edge not clearly at another height (a shadow's on the desk)...
+    z, sigma = _edge_height(_moved(P, s, np.array([move]))[0], s, Q, grads,
+                            -drop / max(float(np.linalg.norm(drop)), 1e-12))
+    if abs(z) > max(ext.weak_height, cfg.lateral_sigmas * sigma):
+        return 0.0
+    # ...and the strip added the cover's: its print lines up at the cover's height (the
+    # edges left out: a step lines up at its own height, print or not)
+    inner = _moved(P, s, np.array([0.005, move - 0.005]))
+    strip = np.array([inner[0, a], inner[0, b], inner[1, b], inner[1, a]])
+    tol = max(cfg.tolerance, cfg.tolerance_ratio * height)
+    swept = sweep_heights(texture["left"], texture["right"], Q["left"], Q["right"],
+                          geometry.project(Q["left"], strip), desk_plane,
+                          np.arange(0.0, height + 2 * tol + 1e-9, 0.001))
+    if swept is None or not (abs(swept.best_height - height) <= tol
+                             and swept.best_ncc - swept.ncc[0] >= cfg.print_margin):
+        return 0.0
+    return move
