@@ -58,6 +58,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("a height-map book over a segmented one cut back", ["stereo.over_cut=false"]),
     ("two overlapping covers, the strip read at one's height: the other cut back",
      ["stereo.height_cut=0"]),
+    ("the grow to where a cover's neighbouring sides end", ["trim.lateral_grow=false"]),
 ]
 
 
