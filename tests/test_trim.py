@@ -461,7 +461,8 @@ def test_lateral_grow_moves_a_side_to_where_its_neighbouring_sides_end(book_scen
     Q = {"left": f.rig.Q_L, "right": f.rig.Q_R}
     strength = det._edge_strength(res.segmentation)
 
-    def grow(P, s, height=0.03, cfg=CFG, tex=texture, limit=0.1):
+    def grow(P: np.ndarray, s: int, height: float = 0.03, cfg: TrimConfig = CFG,
+             tex: dict[str, np.ndarray] = texture, limit: float = 0.1) -> float:
         return lateral_grow(P, s, height, Q, f.grads, strength, tex, f.desk_plane,
                             det.cfg.extent, cfg, limit=limit)
 
@@ -479,9 +480,12 @@ def test_lateral_grow_moves_a_side_to_where_its_neighbouring_sides_end(book_scen
     assert grow(_end_in(truth, 0, 0.02), s) == 0.0
     assert grow(short, s, cfg=replace(CFG, lateral_min=0.06)) == 0.0
     # the maps going on under lateral_run: nothing; a run stopping short of the edge: the
-    # move ends lateral_ahead (8 mm) beyond it at most
+    # move ends lateral_ahead (8 mm) beyond it at most (the sides still edges there, the
+    # strongest step within lateral_back of that end)
     assert grow(short, s, limit=0.029) == 0.0
-    assert 0.03 <= grow(short, s, limit=0.03) <= 0.038
+    assert 0.035 <= grow(short, s, limit=0.03) <= 0.038
+    assert grow(short, s, limit=0.04) == pytest.approx(0.048, abs=0.0005)  # the last one
+    assert grow(short, s, limit=0.075) == pytest.approx(0.05, abs=0.003)  # the sides' end
     # no print to line up, or a print lining up at another height than the cover's
     assert grow(short, s, tex={k: np.zeros_like(v) for k, v in texture.items()}) == 0.0
     assert grow(short, s, height=0.05) == 0.0
@@ -587,6 +591,8 @@ def test_bad_settings_are_refused():
     with pytest.raises(ValueError, match="bad grow_retry"):
         TrimConfig(grow_retry=0.0)
     with pytest.raises(ValueError, match="bad lateral_"):
-        TrimConfig(lateral_min=-0.01)
+        TrimConfig(lateral_min=0.01)  # the strip swept would be empty
+    with pytest.raises(ValueError, match="bad lateral_"):
+        TrimConfig(lateral_gap=float("nan"))
     with pytest.raises(ValueError, match="bad print_continuation"):
         TrimConfig(print_max_overlap=1.5)

@@ -19,7 +19,9 @@ whose sides misled stereo by a centimetre or more in height is laid at the maps'
 :func:`grow_run` reads the maps beyond each side, for a cover cut short at a printed band
 to grow to where they leave its height; :func:`print_grow` asks the cover's print instead,
 where the maps are too coarse to tell (a thin book): the strip beyond the side lines up
-between the images at the cover's height up to its true edge, and not past it.
+between the images at the cover's height up to its true edge, and not past it; and
+:func:`lateral_grow` asks the cover's neighbouring sides, where the maps go on but its
+edge shows no step (a picture of the desk's tone along it): they end at its corners.
 """
 
 from __future__ import annotations
@@ -172,9 +174,10 @@ class TrimConfig:
              and self.print_beyond > 0 and self.print_piece > 0),
             ("print_edges", self.print_edges >= 1),
             ("grow_tries", self.grow_tries >= 1), ("grow_retry", self.grow_retry > 0),
-            ("lateral_*", min(self.lateral_run, self.lateral_start, self.lateral_gap,
-                              self.lateral_spread, self.lateral_back, self.lateral_ahead,
-                              self.lateral_min, self.lateral_sigmas) >= 0),
+            ("lateral_*", all(v >= 0 for v in (
+                self.lateral_run, self.lateral_start, self.lateral_gap, self.lateral_spread,
+                self.lateral_back, self.lateral_ahead, self.lateral_sigmas))
+             and self.lateral_min > 0.01),
             ("print_continuation", 0 <= self.print_continuation <= 1
              and 0 <= self.print_max_overlap <= 1 and -1 <= self.print_min_ncc <= 1
              and -2 <= self.print_margin <= 2)) if not ok]
@@ -186,7 +189,7 @@ class TrimConfig:
                              "in [0, 1]; print_reach, print_min, print_near, print_beyond "
                              "and print_piece positive, print_foot_margin >= 0, "
                              "print_edges >= 1, grow_tries >= 1, grow_retry > 0, "
-                             "the lateral_* settings >= 0, "
+                             "the lateral_* settings >= 0 and lateral_min over 0.01, "
                              "print_min_ncc in "
                              "[-1, 1], print_margin in [-2, 2]; min_samples from 1 to samples; "
                              "grow_margin of any sign; the "
@@ -598,32 +601,35 @@ def lateral_grow(P: NDArray[np.float64], s: int, height: float,
                  cfg: TrimConfig = TrimConfig(), *, limit: float = np.inf) -> float:
     """How far side ``s`` of cover ``P`` (4, 3) moves out to where its neighbouring sides
     end (metres; 0: not at all), for a cover whose own edge there shows no step (a picture
-    with the desk's tone along it); ``limit``: how far the maps go on at its height beyond
-    the side (:func:`grow_run`).
+    with the desk's tone along it).
 
     Such a cover still shows its two neighbouring sides up to its corners.
 
-    1. The maps must go on at least ``cfg.lateral_run`` (their spill past a cover's edge is
-       5-20 mm).
+    1. ``limit``, how far the maps go on at the cover's height beyond the side
+       (:func:`grow_run`; the pipeline passes the smaller of that and a refused move's
+       retry bound), must be at least ``cfg.lateral_run``: their spill past a cover's edge
+       is 5-20 mm. The offsets looked at, every ``ext.step``, go out to ``limit`` plus
+       ``cfg.lateral_ahead`` (and no farther than makes the book ``ext.max_side`` long),
+       which must be ``cfg.lateral_min`` at least.
     2. Each neighbouring side, continued beyond side ``s``, is an edge
        (:func:`rovis.extent._hits`, in either image) from within ``cfg.lateral_start`` of
        the side out, misses up to ``cfg.lateral_gap`` bridged, along at least
        ``ext.min_support`` of it: its end is the end of that run, or the farthest offset
-       looked at (``limit`` plus ``cfg.lateral_ahead``). The two ends must lie within
-       ``cfg.lateral_spread`` of each other.
-    3. The side moves to the strongest step both images show
-       (:func:`rovis.extent._side_scores`) from ``cfg.lateral_back`` short of the farther
-       end (a corner's edge fades a pixel or two short of it) to ``cfg.lateral_ahead``
-       beyond it, no farther than ``limit`` plus ``cfg.lateral_ahead``, and at least
-       ``cfg.lateral_min`` out; where the page block below the side shows, at least
-       ``cfg.print_foot_margin`` beyond where its foot would show
-       (:func:`_foot_offset`): the block's upright edges go on from the corners.
+       looked at. The two ends must lie within ``cfg.lateral_spread`` of each other.
+    3. The side moves to the offset of the largest gradient across it, summed over both
+       images (:func:`rovis.extent._side_scores`' strength; neither need pass as an edge),
+       from ``cfg.lateral_back`` short of the farther end (a corner's edge fades a pixel
+       or two short of it) to ``cfg.lateral_ahead`` beyond it; at least
+       ``cfg.lateral_min`` out and, where the page block below the side shows, at least
+       ``cfg.print_foot_margin`` beyond where its foot would show (:func:`_foot_offset`):
+       the block's upright edges go on from the corners.
     4. Stereo must not place the edge there clearly off the cover's height
-       (:func:`rovis.extent._edge_height`: more than ``ext.weak_height`` and
-       ``cfg.lateral_sigmas`` of its standard deviation), and the strip added (5 mm left
-       out at either edge) must line up between the images at the cover's height
-       (:func:`rovis.sweep.sweep_heights`: best within the trim's tolerance, and
-       ``cfg.print_margin`` above the NCC at the desk's height).
+       (:func:`rovis.extent._edge_height`: by more than ``ext.weak_height`` and
+       ``cfg.lateral_sigmas`` of its standard deviation; a side along the epipolar lines,
+       or one whose fit fails, has no height and passes), and the strip added (5 mm left
+       out at either edge, then the sweep's own inset) must line up between the images at
+       the cover's height (:func:`rovis.sweep.sweep_heights`: best within the trim's
+       tolerance, and ``cfg.print_margin`` above the NCC at the desk's height).
     """
     a, b = s, (s + 1) % 4
     if limit < cfg.lateral_run:
@@ -665,7 +671,7 @@ def lateral_grow(P: NDArray[np.float64], s: int, height: float,
     drop = _drop(P, desk_plane)
     if _block_shows(P, s, Q, drop):
         least = max(least, _foot_offset(P, s, Q, drop) + cfg.print_foot_margin)
-    if not least <= move <= limit + cfg.lateral_ahead:
+    if move < least:  # (no farther than limit + lateral_ahead: the offsets end there)
         return 0.0
     # step 4: the edge not clearly at another height (a shadow's on the desk)...
     z, sigma = _edge_height(_moved(P, s, np.array([move]))[0], s, Q, grads,
