@@ -12,13 +12,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rovis import geometry
-from rovis.extent import _block_shows, _drop
+from rovis import geometry, trim
+from rovis.extent import ExtentConfig, _block_shows, _drop
 from rovis.heightmap import HeightMap
 from rovis.pipeline import DetectConfig, Detector, Pair, with_settings
 from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
+from rovis.sweep import Sweep
 from rovis.trim import (TrimConfig, _foot_offset, cut_cover, grow_run, height_profile,
                         lateral_grow, map_height, print_grow, trim_side)
 
@@ -489,6 +490,82 @@ def test_lateral_grow_moves_a_side_to_where_its_neighbouring_sides_end(book_scen
     # no print to line up, or a print lining up at another height than the cover's
     assert grow(short, s, tex={k: np.zeros_like(v) for k, v in texture.items()}) == 0.0
     assert grow(short, s, height=0.05) == 0.0
+
+
+def _stub_lateral(monkeypatch: pytest.MonkeyPatch, *, ends: tuple[float, float] = (0.05, 0.05),
+                  start: float = 0.0, hole: tuple[float, float] | None = None,
+                  peak: float = 0.05, z: float = 0.0, sigma: float = np.inf,
+                  best: float | None = 0.03, margin: float = 0.2, foot: float | None = None,
+                  limit: float = 0.1) -> float:
+    """lateral_grow on a 20 x 14 cm cover 3 cm up, side 1 (facing +x), with its image
+    tests stubbed: each neighbouring side an edge from ``start`` to its end in ``ends``
+    (metres beyond the side; none inside ``hole``), the strongest step across at
+    ``peak``, stereo's edge height ``z`` +- ``sigma``, the strip's print best at ``best``
+    (None: no print) ``margin`` NCC above the desk's, the page block's foot ``foot`` out
+    (None: no block shows)."""
+    P = np.array([[0.0, 0.0, 0.03], [0.2, 0.0, 0.03], [0.2, 0.14, 0.03], [0.0, 0.14, 0.03]])
+
+    def out(moved):  # each candidate's offset beyond side 1
+        return np.linalg.norm(moved[:, 1] - P[1], axis=1)
+
+    def hits(grad, start_, pts, thr, angle):  # pts (2, D, 2), offsets 1 mm apart
+        d = 0.001 * np.arange(1, pts.shape[1] + 1)
+        h = np.stack([(d >= start - 1e-9) & (d <= e + 1e-9) for e in ends])
+        if hole is not None:
+            h[:, (d > hole[0] + 1e-9) & (d < hole[1] - 1e-9)] = False
+        return h
+
+    monkeypatch.setattr(trim, "_hits", hits)
+    monkeypatch.setattr(trim, "_side_scores", lambda moved, *a, **k: (
+        np.ones(len(moved), bool), -np.abs(out(moved) - peak)))
+    monkeypatch.setattr(trim, "_edge_height", lambda *a, **k: (z, sigma))
+    monkeypatch.setattr(trim, "sweep_heights", lambda *a, **k: None if best is None else Sweep(
+        np.array([0.0, best]), np.array([0.9 - margin, 0.9])))
+    monkeypatch.setattr(trim, "_block_shows", lambda *a, **k: foot is not None)
+    monkeypatch.setattr(trim, "_foot_offset", lambda *a, **k: foot)
+    Q = np.array([[800.0, 0.0, 512.0, 0.0], [0.0, 800.0, 384.0, 0.0], [0.0, 0.0, 1.0, 1.0]])
+    cams = {"left": Q, "right": Q}
+    none = {"left": None, "right": None}
+    return lateral_grow(P, 1, 0.03, cams, none, {"left": 1.0, "right": 1.0}, none,
+                        np.array([0.0, 0.0, 1.0, 0.0]), ExtentConfig(), CFG, limit=limit)
+
+
+def test_lateral_grow_guards(monkeypatch):
+    def grow(**kw) -> float:
+        return _stub_lateral(monkeypatch, **kw)
+
+    assert grow() == pytest.approx(0.05)  # m: both sides end 5 cm out, the step there
+    # step 1: the maps must go on lateral_run (30 mm)
+    assert grow(limit=0.029) == 0.0
+    # step 2: the sides must start within lateral_start (3 mm; a line further out is not
+    # the cover's side), their ends within lateral_spread (12 mm) of each other, and a
+    # hole of lateral_gap (6 mm) is bridged while a wider one ends the run
+    assert grow(start=0.003) == pytest.approx(0.05)
+    assert grow(start=0.004) == 0.0
+    assert grow(ends=(0.05, 0.062), peak=0.062) == pytest.approx(0.062)
+    assert grow(ends=(0.05, 0.063), peak=0.063) == 0.0
+    assert grow(hole=(0.02, 0.027)) == pytest.approx(0.05)
+    assert grow(hole=(0.02, 0.028)) == 0.0  # (both sides end at 2 cm: under lateral_min)
+    # step 3: the strongest step from lateral_back (3 mm) short of the farther end to
+    # lateral_ahead (8 mm) beyond it, at least lateral_min (32 mm) out and
+    # print_foot_margin (4 mm) beyond the page block's foot where it shows
+    assert grow(peak=0.047) == pytest.approx(0.047)
+    assert grow(peak=0.058) == pytest.approx(0.058)
+    assert grow(peak=0.03) == pytest.approx(0.047)  # (the nearest it looks)
+    assert grow(ends=(0.031, 0.031), peak=0.031) == 0.0
+    assert grow(foot=0.046) == pytest.approx(0.05)
+    assert grow(foot=0.047) == 0.0
+    # ...no farther than limit + lateral_ahead (the sides still edges at the last offset)
+    assert grow(ends=(0.2, 0.2), peak=0.2, limit=0.04) == pytest.approx(0.048)
+    # step 4: stereo's edge height, 4 mm or 3 sigma off at most; the strip's print at the
+    # cover's height, print_margin (0.05) above the desk's
+    assert grow(z=0.004, sigma=0.0) == pytest.approx(0.05)
+    assert grow(z=0.005, sigma=0.001) == 0.0
+    assert grow(z=0.02, sigma=0.007) == pytest.approx(0.05)  # (not clearly off)
+    assert grow(z=-0.03, sigma=0.002) == 0.0  # (an edge on the desk: a shadow's)
+    assert grow(best=0.0) == 0.0
+    assert grow(best=None) == 0.0
+    assert grow(margin=0.04) == 0.0
 
 
 def test_a_photo_cover_whose_far_edge_has_the_desk_tone_is_grown_to_it():
