@@ -1581,8 +1581,10 @@ class Detector:
         :meth:`_with_sides_grown` guards, the strip added over no more than
         ``trim.print_max_overlap`` of it of another book: a neighbour of the cover's height
         carries the maps on, and a faint line in its print may pass for the cover's edge
-        (:func:`rovis.extent._grow_side`'s ``weak_support``). The maps' own books are grown
-        too (measured with them)."""
+        (:func:`rovis.extent._grow_side`'s ``weak_support``). Where no edge shows within
+        the run, the side is moved instead to where its neighbouring sides end
+        (:func:`rovis.trim.lateral_grow`, ``trim.lateral_grow``). The maps' own books are
+        grown too (measured with them)."""
         cfg = self.cfg.trim
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         strength = self._edge_strength(segs)
