@@ -59,6 +59,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("two overlapping covers, the strip read at one's height: the other cut back",
      ["stereo.height_cut=0"]),
     ("the grow to where a cover's neighbouring sides end", ["trim.lateral_grow=false"]),
+    ("two books the maps read at two heights split", ["split.by_map=false"]),
 ]
 
 

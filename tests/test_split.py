@@ -13,8 +13,8 @@ from rovis import geometry
 from rovis.pipeline import DetectConfig, Detector, Pair
 from rovis.segment import SegmentConfig, gradients
 from rovis.segment.edges import CANNY_LOW_RATIO
-from rovis.split import (SplitConfig, _step_along, join_halves, seam_profile, split_union,
-                         split_union_heights)
+from rovis.split import (SplitConfig, _step_along, join_halves, map_step, seam_profile,
+                         split_union, split_union_heights)
 from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
@@ -447,11 +447,90 @@ def test_a_cover_the_maps_read_at_one_height_is_not_split():
     assert nearest(DetectConfig(split=SplitConfig(map_check=False))) > 0.05  # m: in two
 
 
+# ---- two books the maps read at two heights, no seam in either image (map_step) ----
+
+STRIP = 0.005  # m, as rovis.trim.height_profile's strips
+
+
+def _profile(*runs: tuple[int, float]) -> np.ndarray:
+    """A height profile (m) of runs of (strips, height), heights on the maps' 3 mm grid."""
+    return np.concatenate([np.full(n, h) for n, h in runs])
+
+
+def test_map_step_finds_where_two_heights_meet():
+    # 150 mm at 24 mm, then 125 mm at 15 mm (two plain books end to end, as Table I's
+    # scene 84 below), with stray readings, unknown strips, and the strips about the seam
+    # reading between the two
+    p = _profile((30, 0.024), (25, 0.015))
+    p[[3, 40]] = 0.018, 0.021
+    p[[10, 11, 45, 46, 47]] = np.nan
+    p[28:32] = 0.021
+    step = map_step(p, STRIP)
+    assert step is not None and abs(step.k - 30) <= 2
+    assert step.heights == pytest.approx((0.024, 0.015))
+    assert step.reduction >= 0.5
+    flipped = map_step(p[::-1].copy(), STRIP)  # the lower book first
+    assert flipped is not None and flipped.heights == pytest.approx((0.015, 0.024))
+    assert abs(flipped.k - (len(p) - step.k)) <= 2
+    # a seam in a run of unknown strips: the middle of the run, either way round
+    gap = _profile((26, 0.024), (8, np.nan), (21, 0.015))
+    assert map_step(gap, STRIP).k == 30
+    assert map_step(gap[::-1].copy(), STRIP).k == 25
+
+
+def test_map_step_leaves_one_cover_and_unclear_steps():
+    assert map_step(_profile((55, 0.024)), STRIP) is None  # one height
+    # the maps' spill at a single cover's ends: under min_part (85 mm) each
+    assert map_step(_profile((4, 0.012), (47, 0.024), (4, 0.009)), STRIP) is None
+    assert map_step(_profile((30, 0.024), (25, 0.021)), STRIP) is None  # under min_step
+    # where the step is, each part 85 mm (split.min_part) or more: a lower end of 80 mm
+    # is no book of its own, nor split off with 5 mm of the cover
+    assert map_step(_profile((39, 0.024), (16, 0.012)), STRIP) is None
+    assert map_step(_profile((38, 0.024), (17, 0.012)), STRIP) is not None
+    sparse = _profile((30, 0.024), (25, 0.015))
+    sparse[30:][np.arange(25) % 3 != 2] = np.nan  # the lower part read over a third of it
+    for p in (sparse, sparse[::-1].copy()):
+        assert map_step(p, STRIP) is None
+        assert map_step(p, STRIP, SplitConfig(map_known=0.3)) is not None
+    # a part over a page block and a shadow reads every height
+    mixed = _profile((30, 0.024), (25, 0.0))
+    mixed[30:] = np.tile(np.arange(0.0, 0.019, 0.003), 4)[:25]
+    assert map_step(mixed, STRIP) is None
+    assert map_step(mixed, STRIP, SplitConfig(map_agree=0.0)) is not None
+    # two heights, but a third of the strips read anywhere: two explain it little better
+    noisy = _profile((30, 0.024), (25, 0.015))
+    noisy[[47, 12, 27, 16, 41, 28, 43, 38, 13, 35, 52, 53, 5, 20, 1, 17, 46, 10, 32, 49, 19,
+           4]] = 0.001 * np.array([12, 21, 21, 3, 42, 33, 42, 3, 30, 12, 24, 39, 12, 30, 6,
+                                   12, 42, 18, 21, 12, 3, 18])
+    assert map_step(noisy, STRIP) is None
+    assert map_step(noisy, STRIP, SplitConfig(map_reduction=0.2)).reduction < 0.5
+    assert map_step(np.full(40, np.nan), STRIP) is None
+
+
+def test_two_plain_books_of_one_tone_are_split_by_the_maps():
+    # Table I's scene 84 (rovis synth --protocol table1 --seed 1): two plain covers of
+    # one tone, 160 x 123 x 23 mm and 123 x 111 x 15 mm, end to end; their seam shows along
+    # a sixth of its length in the left image, and both segmentations took the two for one
+    # cover, 284 mm long. The maps read its two ends at 24 and 15 mm.
+    sc, r = dataset_scene("table1", 1, 84)
+    books = [np.asarray(r.truth["books"][i]["center"]) for i in (2, 5)]
+
+    def errors(cfg: DetectConfig) -> list[float]:
+        res = Detector(sc.rig, cfg).detect(r.left, r.right)
+        return [min((float(np.abs(o.pose.center - c).max()) for o in res.objects),
+                    default=np.inf) for c in books]
+
+    assert max(errors(DetectConfig())) < 0.004  # m, both books, on every axis
+    assert min(errors(DetectConfig(split=SplitConfig(by_map=False)))) > 0.05  # the union
+
+
 @pytest.mark.parametrize("bad", [{"lay_reach": -0.01}, {"join_touch": -1.0},
                                  {"join_step": -0.001}, {"join_angle_deg": 90.0},
                                  {"min_jog_px": 0.0}, {"jog_agree_px": -1.0},
                                  {"jog_reach_px": 0.0}, {"jog_min_share": 1.5},
-                                 {"jog_min_share": -0.1}])
+                                 {"jog_min_share": -0.1}, {"map_known": 1.5},
+                                 {"map_reduction": -0.1}, {"map_agree": 2.0},
+                                 {"map_tolerance": 0.0}])
 def test_bad_split_settings_are_refused_by_name(bad):
     with pytest.raises(ValueError, match=f"bad {next(iter(bad))}"):
         SplitConfig(**bad)

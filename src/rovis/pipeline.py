@@ -46,7 +46,7 @@ from rovis.segment.methods import METHODS, segment
 from rovis.segment.boundary import (Fit, refine_quad, refine_quad_both, refine_quad_fits,
                                     side_evidence)
 from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
-from rovis.split import Split, SplitConfig, join_halves, split_union_heights
+from rovis.split import Split, SplitConfig, join_halves, map_step, split_union_heights
 from rovis.track import TrackConfig, follow
 from rovis.trim import (TrimConfig, cut_cover, grow_run, height_profile, lateral_grow, map_height,
                         print_grow, trim_side)
@@ -2191,7 +2191,12 @@ class Detector:
         quad of the lower part still on the union's outline, at the taller book's
         disparity), each part is laid at the height its edges along the cut sides stand at
         (what split it) and its sides but the seam moved onto the edges both images show
-        there (:func:`rovis.heightmap.snap_sides`)."""
+        there (:func:`rovis.heightmap.snap_sides`).
+
+        A book for which no split by a seam was kept (none found, or one refused), with
+        ``maps`` and ``split.by_map``, is split where the maps read it at two heights across
+        a line (:meth:`_split_by_map`): two books of one tone whose seam neither image
+        shows."""
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         strength = self._edge_strength(segs)
         out: list[tuple[Pair, BookDetection]] = []
@@ -2226,8 +2231,59 @@ class Detector:
                 if self._keeps_step(made, heights):
                     out += made  # type: ignore[arg-type]
                     continue
+            if maps and self.cfg.split.by_map:  # no seam split it: the maps' step may
+                others = [p.left for p, _ in found if p is not pair]
+                by_map = self._split_by_map(rig, grads, pair, desk_plane, texture, maps,
+                                            others)
+                if by_map is not None:
+                    out += by_map
+                    continue
             out.append((pair, book))
         return out
+
+    def _split_by_map(self, rig: StereoRig, grads: dict[str, Gradients], pair: Pair,
+                      desk_plane: NDArray[np.float64],
+                      texture: dict[str, NDArray[np.float32]] | None,
+                      maps: list[tuple[HeightMap, NDArray[np.float64]]],
+                      others: Sequence[NDArray[np.float64]] = (),
+                      ) -> list[tuple[Pair, BookDetection]] | None:
+        """The two books of a cover the height maps read at two heights across a line
+        (:func:`rovis.split.map_step` on :func:`rovis.trim.height_profile` along either
+        axis, the larger reduction), each part laid at its median height
+        (:meth:`_laid_part`: its sides but the seam snapped to the edges both images show;
+        the seam stays where the maps' strips put it, a strip or two off, for the trim and
+        the grows to settle), or None where the maps read no step, a part lies over
+        another found book (``others``, left quads: by more than
+        ``stereo.transfer_max_overlap`` of the smaller; that part is that book, and a cover
+        reaching over a lower one is the trim's) or the parts are not two books that keep
+        the step (:meth:`_keeps_step`)."""
+        P, _ = _on_cover_plane(rig, pair, desk_plane)
+        steps = []
+        for axis in (0, 1):
+            profile = height_profile(P, axis, maps, self.cfg.trim)
+            strip = float(np.linalg.norm(P[axis + 1] - P[axis])) / len(profile)
+            step = map_step(profile, strip, self.cfg.split)
+            if step is not None:
+                steps.append((step.reduction, axis, step, strip, len(profile)))
+        if not steps:
+            return None
+        _, axis, step, strip, n = max(steps, key=lambda s: s[0])
+        # the part from the profile's start (its far end cut off) and the part after it
+        parts = [(cut_cover(P, axis, end, cut), height)
+                 for end, cut, height in ((1, (n - step.k) * strip, step.heights[0]),
+                                          (0, step.k * strip, step.heights[1]))]
+        limit = self.cfg.stereo.transfer_max_overlap
+        if any(quad_overlap(geometry.project(rig.Q_L, W), other) > limit
+               for (W, _), _ in parts for other in others):
+            return None
+        made = []
+        for (W, seam), height in parts:
+            part = {"left": geometry.project(rig.Q_L, W), "right": geometry.project(rig.Q_R, W)}
+            made.append(self._laid_part(rig, grads, pair, part, height, seam, desk_plane,
+                                        texture))
+        if not self._keeps_step(made, step.heights):
+            return None
+        return made  # type: ignore[return-value]
 
     def _one_height(self, rig: StereoRig, split: Split,
                     maps: list[tuple[HeightMap, NDArray[np.float64]]]) -> bool:

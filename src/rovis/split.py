@@ -28,9 +28,13 @@ third cue tells them apart where their widths differ or they lie offset across t
   (:func:`_jogs_at`): read along the side, the edge breaks from one straight line onto
   another, by as much and the same way in both images, where the books meet.
 
-Two books of one height and one width laid flush and aligned are not told apart, nor are
-two whose seam shows no step: the nearer book the taller and both covers of one
-brightness, it hides the seam behind its top edge.
+Two books of one height and one width laid flush and aligned are not told apart. Where
+the seam shows no step (the nearer book the taller and both covers of one brightness, it
+hides the seam behind its top edge), a fourth cue, the detector's, can still tell them:
+
+- *the maps' step*: the height maps (:mod:`rovis.heightmap`) read the union's two parts at
+  two heights, either side of a line across it (:func:`map_step`, on the profile
+  :func:`rovis.trim.height_profile` reads).
 
 The reverse, :func:`join_halves`: one cover found as two books either side of a printed
 band, the two at one height, sharing a whole side and making one rectangle, is joined.
@@ -87,6 +91,12 @@ class SplitConfig:
     less than ``min_step`` apart: one cover whose sides' edges stand at two heights (a
     picture's line taken for a seam), not two books.
 
+    With ``by_map`` (the detector's split step, where it has the height maps and no split
+    by a seam was kept): a cover the maps read at two heights, either side of a line
+    across it, is split there (:func:`map_step`, which reads ``min_part``, ``min_step`` and
+    the ``map_*`` settings), where both parts, each laid at its height, pass the pose
+    checks and neither lies over another found book.
+
     The reverse (:func:`join_halves`, with ``join``): two books whose mean heights lie
     within ``join_step`` of each other, sharing a whole side (both its ends within
     ``join_touch``) and lying either side of it, whose outer corners make a rectangle
@@ -118,10 +128,19 @@ class SplitConfig:
     jog_agree_px: float = 1.0
     jog_reach_px: float = 6.0
     map_check: bool = True
+    by_map: bool = True
+    map_known: float = 0.5
+    map_reduction: float = 0.5
+    map_agree: float = 0.5
+    map_tolerance: float = 0.0035  # the maps sweep every 3 mm (float32 heights)
 
     def __post_init__(self) -> None:
         problems = [name for name, ok in (
             ("lay_reach", self.lay_reach >= 0),
+            ("map_known", 0 <= self.map_known <= 1),
+            ("map_reduction", 0 <= self.map_reduction <= 1),
+            ("map_agree", 0 <= self.map_agree <= 1),
+            ("map_tolerance", self.map_tolerance > 0),
             ("join_touch", self.join_touch >= 0), ("join_step", self.join_step >= 0),
             ("join_angle_deg", 0 <= self.join_angle_deg < 90),
             ("min_jog_px", self.min_jog_px > 0), ("jog_agree_px", self.jog_agree_px >= 0),
@@ -130,8 +149,9 @@ class SplitConfig:
         if problems:
             raise ValueError(f"split: bad {', '.join(problems)} (lay_reach, join_touch, "
                              "join_step and jog_agree_px at least 0; join_angle_deg in "
-                             "[0, 90); min_jog_px and jog_reach_px positive; jog_min_share "
-                             "in [0, 1])")
+                             "[0, 90); min_jog_px, jog_reach_px and map_tolerance positive; "
+                             "jog_min_share, map_known, map_reduction and map_agree in "
+                             "[0, 1])")
 
 
 def seam_profile(grad: Gradients, corners: NDArray[np.float64], k: int, t: NDArray[np.float64],
@@ -344,6 +364,99 @@ def _parts(corners: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
         far[k], far[(k + 1) % 4] = seam
         parts[0][cam], parts[1][cam] = near, far
     return parts
+
+
+class MapStep(NamedTuple):
+    """Where the height maps read a cover at two heights (:func:`map_step`).
+
+    Attributes
+    ----------
+    k : int
+        The step lies between strips ``k - 1`` and ``k`` of the profile.
+    heights : (float, float)
+        The median height of strips ``0 .. k - 1`` and of strips ``k ..`` (metres above the
+        desk).
+    reduction : float
+        How much better two heights explain the profile than one, 0 to 1: one less the
+        summed distance of each part's strips from its median over that of all strips from
+        theirs.
+    """
+
+    k: int
+    heights: tuple[float, float]
+    reduction: float
+
+
+def map_step(profile: NDArray[np.float64], strip: float,
+             cfg: SplitConfig = SplitConfig()) -> MapStep | None:
+    """The step between two touching books in their union's height profile, or None.
+
+    Two books of different heights laid flush, their covers of one tone, may show no seam
+    in either image (the taller one's edge hides the line between them), but the height
+    maps (:mod:`rovis.heightmap`) read each at its own height. The step is put where two
+    heights, each part's median, explain the profile best: the largest fall in the summed
+    distance of the strips from their part's height, among the places where each part is
+    known over ``cfg.map_known`` of its strips and the two heights lie ``cfg.min_step``
+    apart or more (where several places tie, as a seam in a run of unknown strips, the
+    middle one). There each part must be ``cfg.min_part`` long or more (the maps carry a
+    cover's height 5-20 mm past its edge: a single cover's profile steps at its ends), the
+    fall ``cfg.map_reduction`` of the one-height distance or more, and each part's known
+    strips within ``cfg.map_tolerance`` of its height over ``cfg.map_agree`` of them (a
+    part over a page block and a shadow reads every height).
+
+    Parameters
+    ----------
+    profile : ndarray, shape (S,)
+        Heights of strips across the cover, each ``strip`` wide (metres above the desk,
+        NaN unknown; :func:`rovis.trim.height_profile`).
+    strip : float
+        The strips' width, metres.
+    cfg : SplitConfig
+        ``min_part``, ``min_step``, ``map_known``, ``map_reduction``, ``map_agree``,
+        ``map_tolerance``.
+
+    Returns
+    -------
+    MapStep or None
+        None where the maps read one height, or no step clear enough.
+    """
+    profile = np.asarray(profile, dtype=np.float64)
+    n = len(profile)
+    known = np.isfinite(profile)
+    if not known.any() or strip <= 0:
+        return None
+    spread = float(np.abs(profile[known] - np.median(profile[known])).sum())
+    if spread <= 0.0:
+        return None
+    steps: list[MapStep] = []  # every place a step may be, in order along the profile
+    for k in range(1, n):
+        a, b = profile[:k][known[:k]], profile[k:][known[k:]]
+        if min(len(a), len(b)) == 0 or len(a) < cfg.map_known * k \
+                or len(b) < cfg.map_known * (n - k):
+            continue
+        ha, hb = float(np.median(a)), float(np.median(b))
+        if abs(ha - hb) < cfg.min_step:
+            continue
+        reduction = 1.0 - float(np.abs(a - ha).sum() + np.abs(b - hb).sum()) / spread
+        steps.append(MapStep(k, (ha, hb), reduction))
+    if not steps:
+        return None
+    top = max(s.reduction for s in steps)
+    first = next(i for i, s in enumerate(steps) if s.reduction >= top - 1e-12)
+    last = first  # the run of places tied with the first best, next to each other
+    while last + 1 < len(steps) and steps[last + 1].k == steps[last].k + 1 \
+            and steps[last + 1].reduction >= top - 1e-12:
+        last += 1
+    best = steps[(first + last) // 2]
+    # where the step is, not where a step is allowed: a short run of another height at an
+    # end moves no step inward onto the cover
+    if best.reduction < cfg.map_reduction or min(best.k, n - best.k) * strip < cfg.min_part - 1e-9:
+        return None
+    for part, h in ((profile[:best.k], best.heights[0]), (profile[best.k:], best.heights[1])):
+        part = part[np.isfinite(part)]
+        if np.mean(np.abs(part - h) <= cfg.map_tolerance) < cfg.map_agree:
+            return None
+    return best
 
 
 def join_halves(A: NDArray[np.float64], B: NDArray[np.float64], desk_plane: NDArray[np.float64],
