@@ -2269,18 +2269,18 @@ class Detector:
             return None
         _, axis, step, strip, n = max(steps, key=lambda s: s[0])
         # the part from the profile's start (its far end cut off) and the part after it
-        parts = [(cut_cover(P, axis, end, cut), height)
-                 for end, cut, height in ((1, (n - step.k) * strip, step.heights[0]),
-                                          (0, step.k * strip, step.heights[1]))]
-        limit = self.cfg.stereo.transfer_max_overlap
-        if any(quad_overlap(geometry.project(rig.Q_L, W), other) > limit
-               for (W, _), _ in parts for other in others):
-            return None
-        made = []
-        for (W, seam), height in parts:
+        parts = []
+        for end, cut, height in ((1, (n - step.k) * strip, step.heights[0]),
+                                 (0, step.k * strip, step.heights[1])):
+            W, seam = cut_cover(P, axis, end, cut)
             part = {"left": geometry.project(rig.Q_L, W), "right": geometry.project(rig.Q_R, W)}
-            made.append(self._laid_part(rig, grads, pair, part, height, seam, desk_plane,
-                                        texture))
+            parts.append((part, height, seam))
+        limit = self.cfg.stereo.transfer_max_overlap
+        if any(quad_overlap(part["left"], other) > limit
+               for part, _, _ in parts for other in others):
+            return None
+        made = [self._laid_part(rig, grads, pair, part, height, seam, desk_plane, texture)
+                for part, height, seam in parts]
         if not self._keeps_step(made, step.heights):
             return None
         return made  # type: ignore[return-value]

@@ -54,6 +54,7 @@ from rovis.extent import _edge_height, _unit
 from rovis.segment.edges import Gradients
 from rovis.segment.lines import intersect, refine_segment
 from rovis.stereo import flat_rectangle
+from rovis.trim import row_medians
 
 
 @dataclass(frozen=True)
@@ -438,7 +439,7 @@ def map_step(profile: NDArray[np.float64], strip: float,
     k, before, after = k[usable], before[usable], after[usable]
     head = np.where(np.arange(n) < k[:, None], profile, np.nan)  # (K, S)
     tail = np.where(np.arange(n) >= k[:, None], profile, np.nan)
-    ha, hb = _row_medians(head, before), _row_medians(tail, after)
+    ha, hb = row_medians(head, before), row_medians(tail, after)
     deviation = (np.nansum(np.abs(head - ha[:, None]), axis=1)
                  + np.nansum(np.abs(tail - hb[:, None]), axis=1))
     apart = np.abs(ha - hb) >= cfg.min_step
@@ -462,15 +463,6 @@ def map_step(profile: NDArray[np.float64], strip: float,
         if np.mean(np.abs(part - h) <= cfg.map_tolerance) < cfg.map_agree:
             return None
     return best
-
-
-def _row_medians(rows: NDArray[np.float64], count: NDArray[np.intp]) -> NDArray[np.float64]:
-    """Each row's median over its ``count`` values that are not NaN (the rest NaN): as
-    np.median of those values (np.sort puts NaN last; np.nanmedian is several times
-    slower on short rows)."""
-    ordered = np.sort(rows, axis=1)
-    r = np.arange(len(rows))
-    return 0.5 * (ordered[r, (count - 1) // 2] + ordered[r, count // 2])
 
 
 def join_halves(A: NDArray[np.float64], B: NDArray[np.float64], desk_plane: NDArray[np.float64],

@@ -233,13 +233,17 @@ def height_profile(P: NDArray[np.float64], axis: int,
         count = np.count_nonzero(np.isfinite(z), axis=1)
         enough = np.flatnonzero(np.isnan(out) & (count >= cfg.min_samples))
         if len(enough):
-            # each row's median over its values (np.sort puts NaN last; np.nanmedian is
-            # several times slower on short rows)
-            z = np.sort(z[enough], axis=1)
-            n = count[enough]
-            rows = np.arange(len(enough))
-            out[enough] = 0.5 * (z[rows, (n - 1) // 2] + z[rows, n // 2])
+            out[enough] = row_medians(z[enough], count[enough])
     return out
+
+
+def row_medians(rows: NDArray[np.float64], count: NDArray[np.intp]) -> NDArray[np.float64]:
+    """Each row's median over its values that are not NaN, ``count`` of them (K,) in rows
+    (K, M): as np.median of those values (np.sort puts NaN last; np.nanmedian is several
+    times slower on short rows)."""
+    ordered = np.sort(rows, axis=1)
+    r = np.arange(len(rows))
+    return 0.5 * (ordered[r, (count - 1) // 2] + ordered[r, count // 2])
 
 
 def _read(hm: HeightMap, Q: NDArray[np.float64],
