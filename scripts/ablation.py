@@ -60,6 +60,8 @@ STEPS: list[tuple[str, list[str]]] = [
      ["stereo.height_cut=0"]),
     ("the grow to where a cover's neighbouring sides end", ["trim.lateral_grow=false"]),
     ("two books the maps read at two heights split", ["split.by_map=false"]),
+    ("the late pool looked for in the other image", ["stereo.pool_transfer_late=false"]),
+    ("a transferred cover laid on its sides from end to end", ["stereo.pool_transfer_fit=false"]),
 ]
 
 

@@ -109,6 +109,35 @@ def test_two_plain_covers_match_despite_their_noise(scene, right_texture, right_
     assert (len(found) == 1) == matched
 
 
+def _sines(rig, P, plane):
+    """Per side of a cover (world corners P, (4, 3)), the sine of its angle in the right
+    image to its epipolar lines there (~0 along them): the motion of the left image's
+    corners, laid on the plane 1 cm higher and projected."""
+    from rovis.sweep import on_plane
+    src, dst = _ideal(rig, P, rig.Q_L), _ideal(rig, P, rig.Q_R)
+    height = float(np.mean(P @ plane[:3] + plane[3]))
+    motion = _ideal(rig, on_plane(rig.Q_L, src, plane, height + 0.01), rig.Q_R) - dst
+    motion = 0.5 * (motion + np.roll(motion, -1, axis=0))
+    side = np.roll(dst, -1, axis=0) - dst
+    return np.abs(side[:, 0] * motion[:, 1] - side[:, 1] * motion[:, 0]) / (
+        np.linalg.norm(side, axis=1) * np.linalg.norm(motion, axis=1))
+
+
+def _sides_moved(quad, px):
+    """``quad`` (4, 2) with side s (corner s to s + 1) moved outward by ``px[s]`` pixels,
+    the corners where the moved sides meet."""
+    from rovis.segment.lines import intersect
+    centre = quad.mean(axis=0)
+    lines = []
+    for s in range(4):
+        a, c = quad[s], quad[(s + 1) % 4]
+        d = (c - a) / np.linalg.norm(c - a)
+        n = np.array([d[1], -d[0]])
+        n = n if n @ (a - centre) > 0 else -n
+        lines.append((a + px.get(s, 0.0) * n, d))
+    return np.array([intersect(*lines[s - 1], *lines[s]) for s in range(4)])
+
+
 def _ideal_grad(rig, raw, camera):
     import cv2
 
@@ -416,6 +445,102 @@ def test_a_cover_is_found_in_the_other_image_with_one_side_along_the_epipolar_li
     assert np.mean(excused) >= 0.6  # (6 of 8 when written)
 
 
+def test_with_a_side_excused_one_side_along_the_epipolar_lines_may_still_fall_short(scene):
+    # a plain cover of the desk's tone end to end with another (its end, the excused side,
+    # shows no edge) whose long side along the epipolar lines shows only its page block's
+    # foot in the other image: with ``along_short``, its other end, across the lines,
+    # still places it.
+    import cv2
+    from dataclasses import replace
+    sc, r = scene
+    rig = sc.rig
+    gray_l, _ = _ideal_grad(rig, r.left, "left")
+    gray_r, grad_r = _ideal_grad(rig, r.right, "right")
+    placed: list[bool] = []
+
+    def blinded(dst, sides):
+        mask = np.zeros(grad_r.shape, np.uint8)  # each side's middle 70 %, 7 px wide
+        for s in sides:
+            a, c = dst[s], dst[(s + 1) % 4]
+            cv2.line(mask, tuple(np.rint(a + 0.15 * (c - a)).astype(int)),
+                     tuple(np.rint(a + 0.85 * (c - a)).astype(int)), 255, 7)
+        return replace(grad_r, dx=np.where(mask > 0, 0, grad_r.dx).astype(grad_r.dx.dtype),
+                       dy=np.where(mask > 0, 0, grad_r.dy).astype(grad_r.dy.dtype))
+
+    for b in r.truth["books"]:
+        if min(b["visible_left"], b["visible_right"]) < 0.99:
+            continue
+        P = np.array(b["corners"])
+        src, dst = _ideal(rig, P, rig.Q_L), _ideal(rig, P, rig.Q_R)
+        args = (src, rig.Q_L, rig.Q_R, r.truth["desk_plane"])
+        if find_in_other_view(*args, grad_r, 10.0, gray_from=gray_l, gray_to=gray_r) is None:
+            continue
+        sine = _sines(rig, P, np.asarray(r.truth["desk_plane"], dtype=np.float64))
+        along = [s for s in range(4) if sine[s] < 0.3]
+        across = [s for s in range(4) if sine[s] > 0.8]
+        if not along or len(across) < 2:
+            continue
+        u, a = across[0], along[0]
+        blind = blinded(dst, [u, a])
+        # by default every side but the excused one must show (the pipeline asks this
+        # first, and the looser look only where it then fits the cover, _transferred_fit)
+        assert find_in_other_view(*args, blind, 10.0, gray_from=gray_l, gray_to=gray_r,
+                                  unseen=u) is None
+        got = find_in_other_view(*args, blind, 10.0, gray_from=gray_l, gray_to=gray_r,
+                                 unseen=u, along_short=True)
+        placed.append(got is not None and np.abs(got[0] - dst).max() < 2.5)  # px
+    assert len(placed) >= 2
+    assert np.mean(placed) >= 0.5
+
+
+def test_a_transferred_cover_is_laid_on_the_sides_from_its_unseen_end_to_the_other(scene):
+    # two plain books end to end: the one-image search's candidate has its end at the seam
+    # unseen (6 px off in the other image), and its other end 2 px outward in its own
+    # image (a thick book's end face blurs it). Fitted to every side but the unseen one,
+    # the cover comes out centimetres off in height; fitted in the other image to the two
+    # sides from end to end only (and to every side of its own), it is the cover
+    from rovis import geometry
+    from rovis.pipeline import _transferred_fit
+    sc, r = scene
+    rig, plane = sc.rig, np.asarray(r.truth["desk_plane"], dtype=np.float64)
+    heights = []
+    for b in r.truth["books"]:
+        P = np.array(b["corners"])
+        src, dst = _ideal(rig, P, rig.Q_L), _ideal(rig, P, rig.Q_R)
+        sine = _sines(rig, P, plane)
+        unseen = int(np.argmax(sine))  # an end across the epipolar lines: it places height
+        if sine[(unseen + 2) % 4] < 0.8:
+            continue
+        left = _sides_moved(src, {(unseen + 2) % 4: 2.0})
+        right = _sides_moved(dst, {unseen: 6.0})
+        got = _transferred_fit(rig, Pair(left, right, 1.0, 0.0, transferred="left"), "right",
+                               unseen, plane, 1.0)
+        assert got is not None
+        heights.append(float(np.mean(got[:, 2])))
+        assert abs(heights[-1] - b["size"][2]) < 0.0015  # m
+        assert np.abs(got - P)[:, :2].max() < 0.006  # m: the blurred end, a few mm out
+        # fitted to every side but the unseen one, the height is off
+        use = np.ones((2, 4), bool)
+        use[1, unseen] = False
+        P0 = geometry.triangulate(rig.Q_L, rig.Q_R, left, right)
+        every, _ = geometry.fit_rectangle_sides(rig.Q_L, rig.Q_R, left, right, P0, plane,
+                                                use=use)
+        assert abs(float(np.mean(every[:, 2])) - b["size"][2]) > 0.005  # m
+        # a side it uses that its fit must miss by more than max_off: no cover (a corner
+        # of its own image 4 px off makes no rectangle's image)
+        bad = left.copy()
+        bad[0] += 4.0 * (src[0] - src.mean(axis=0)) / np.linalg.norm(src[0] - src.mean(axis=0))
+        assert _transferred_fit(rig, Pair(bad, right, 1.0, 0.0, transferred="left"), "right",
+                                unseen, plane, 1.0) is None
+        # found in the right image instead, looked for in the left: the same
+        swapped = _transferred_fit(rig, Pair(_sides_moved(src, {unseen: 6.0}),
+                                             _sides_moved(dst, {(unseen + 2) % 4: 2.0}),
+                                             1.0, 0.0, transferred="right"),
+                                   "left", unseen, plane, 1.0)
+        assert swapped is not None and abs(float(np.mean(swapped[:, 2])) - b["size"][2]) < 0.002
+    assert len(heights) >= 2
+
+
 def _false_books(res, truth):
     """The detections whose centre lies 5 cm or more from every true book's."""
     centres = np.array([b["center"][:2] for b in truth["books"]])
@@ -559,7 +684,9 @@ def test_one_of_two_plain_books_end_to_end_is_found_from_one_images_candidate():
     # Hough lines miss the first's faint front side). The left image's candidate for the
     # first, refined, ends on the step where the widths differ (its end side seen along
     # about 40 % of it); looked for in the right image with that side excused, it is the
-    # book. (A pixel or two of its other end's blur puts it ~12 mm low: noticed, left.)
+    # book. Its long sides run near the epipolar lines; refined in the right image, they
+    # put it ~12 mm low: laid flat on its two sides from end to end (_transferred_fit), it is
+    # found to grasping accuracy.
     sc, r = dataset_scene("table2", 1, 12)
     book = r.truth["books"][0]
     assert book["cover"] == "plain"
@@ -568,11 +695,39 @@ def test_one_of_two_plain_books_end_to_end_is_found_from_one_images_candidate():
     assert len(found) == 1
     o = found[0]
     assert o.source == "one image"
-    assert np.linalg.norm(o.pose.center[:2] - book["center"][:2]) < 0.015  # m, on the desk
+    assert np.abs(o.pose.center - book["center"]).max() < 0.006  # m, on each axis
+    assert abs(o.pose.size[2] - book["size"][2]) < 0.004  # m: the height
     np.testing.assert_allclose(sorted(o.pose.size[:2]), sorted(book["size"][:2]), atol=0.01)
     assert _near_book(sc, r, book, ["stereo.pool_transfer=false"]) == []
+    # fitted to every side of both images instead, it is found too, but lower
+    low = _near_book(sc, r, book, ["stereo.pool_transfer_fit=false"])
+    assert len(low) == 1 and book["center"][2] - low[0].pose.center[2] > 0.008  # m
 
 
+def test_the_late_candidates_are_looked_for_in_the_other_image_too():
+    # Table II's scene 13 (artificial light, 500 lx): the same two books. Only the late pool
+    # (the closed loop's other T_H, Segmentation.late_pool) holds a candidate for the
+    # first, in the left image; looked for in the right with its end excused, and laid on
+    # its two sides from end to end there, it is the book.
+    sc, r = dataset_scene("table2", 1, 13)
+    book = r.truth["books"][0]
+    assert book["cover"] == "plain"
+    found = _near_book(sc, r, book, [])
+    assert len(found) == 1 and found[0].source == "one image"
+    assert np.abs(found[0].pose.center - book["center"]).max() < 0.006  # m, on each axis
+    assert _near_book(sc, r, book, ["stereo.pool_transfer_late=false"]) == []
+    assert _near_book(sc, r, book, ["stereo.pool_transfer_fit=false"]) == []
+
+
+def test_a_late_candidate_with_a_side_unseen_is_a_book_only_as_the_fit_makes_it():
+    # build/t2b's scene 25 (rovis synth --protocol table2 --seed 2): the late pool holds a
+    # candidate over the desk between books, its far side unseen, that the other image
+    # shows only with a side along the epipolar lines short. Reconstructed as it is, it
+    # passed the pose checks: a false book (with the pipeline's fit_only forced False, and
+    # in a trial without the rule). Laid on its sides from end to end, it misses them.
+    sc, r = dataset_scene("table2", 2, 25)
+    res = Detector(sc.rig).detect(r.left, r.right)
+    assert _false_books(res, r.truth) == []
 def test_desk_between_found_books_is_no_book(monkeypatch):
     # Table II's scene 44: the desk between a dark and two light books, each found; a
     # candidate there has its sides on theirs, and the other image shows them too, a few

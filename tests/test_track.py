@@ -139,12 +139,13 @@ def test_detect_track_follows_between_detections(still, tmp_path, capsys):
     assert [f["tracked"] for f in frames] == [False, True, True, False]
     assert all(len(f["objects"]) == len(frames[0]["objects"]) for f in frames[:3])
     # frame 3's search starts from frame 0's optimum and evaluates fewer T_H, so it may
-    # offer stereo fewer candidates (Segmentation.late_pool): it finds no book frame 0 did
-    # not, and every one frame 0 found other than among the candidates
+    # offer stereo other candidates (Segmentation.late_pool, read by the candidates' late
+    # pass and the one-image search): the books found otherwise are the same
+    late = ("candidates", "one image")
     near = lambda o, f: min((np.abs(np.subtract(o["center"], p["center"])).max()
                              for p in f["objects"]), default=np.inf) < 0.005  # metres
-    assert all(near(o, frames[0]) for o in frames[3]["objects"])
-    assert all(near(o, frames[3]) for o in frames[0]["objects"] if o["source"] != "candidates")
+    assert all(near(o, frames[0]) for o in frames[3]["objects"] if o["source"] not in late)
+    assert all(near(o, frames[3]) for o in frames[0]["objects"] if o["source"] not in late)
     assert "2 frames tracked" in capsys.readouterr().out
 
 

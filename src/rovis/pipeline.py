@@ -73,7 +73,7 @@ DROP_REASONS = ("degenerate", "too long", "too small", "tilted", "height", "side
                 "texture height", "skewed", "printed", "overlaps")
 # A frame's pool candidates refined (Detector._from_pool): (camera, index into the pool,
 # open pool and small pool concatenated, the late pool after them in the late and the
-# small_open passes) →
+# small_open passes; Detector._from_pool_one_image reads the same indices) →
 # corners with and without the inward search, (4, 2) each, and each side's fit
 # (refine_sides's, with the inward search): :func:`refine_quad_fits`.
 Refined = dict[tuple[str, int], tuple[NDArray[np.float64], NDArray[np.float64],
@@ -132,10 +132,12 @@ class DetectConfig:
         paper; needs the desk plane). Twice this is also the margin ``flat_refit_sides``
         asks of the side it leaves out.
     flat_refit_sides : float
-        Pixels; 0 turns it off. Where that refit misses, the rectangle is fitted to the
-        pair's sides instead of its corners, one image's side left out: one that lies
-        outside the fit by more than twice ``flat_refit_px`` (a page block's foot, the soft
-        edge of the cover's shadow), the other seven sides within this of it
+        Pixels; 0 turns it off (and ``stereo.pool_transfer_fit``: the one-image search's fit
+        of a candidate with a side unseen must lie within this of its sides). Where that
+        refit misses, the rectangle is fitted to the pair's sides instead of its corners,
+        one image's side left out: one that lies outside the fit by more than twice
+        ``flat_refit_px`` (a page block's foot, the soft edge of the cover's shadow), the
+        other seven sides within this of it
         (:meth:`Detector._side_fit`; beyond the paper). A segmentation pair gets it only
         after its alternatives (``stereo.alternatives``) made no book.
     unskew_deg, unskew_height : float
@@ -1302,8 +1304,9 @@ class Detector:
                              refined: Refined,
                              ) -> list[tuple[Pair, BookDetection]]:
         """Books where no book is yet from one image's candidate quads
-        (:attr:`Segmentation.pool` and :attr:`Segmentation.open_pool`), each looked for in
-        the other image (:func:`rovis.stereo.find_in_other_view`).
+        (:attr:`Segmentation.pool` and :attr:`Segmentation.open_pool`, then
+        :attr:`Segmentation.late_pool`: ``StereoConfig.pool_transfer_late``), each looked
+        for in the other image (:func:`rovis.stereo.find_in_other_view`).
 
         What this finds: two plain books end to end, of the desk's tone. Where one's end
         touches the other's no edge shows, in either image, so neither is a segmented cover
@@ -1320,6 +1323,12 @@ class Detector:
         sides on the outlines of books found by then (cover and page block), nor (with
         ``texture``) print inside that matches best on the desk: desk between books, its
         sides theirs. Each must pass the pose checks.
+
+        A candidate with a side unseen is laid flat on its sides but, in the other image,
+        that one and its opposite (:func:`_transferred_fit`; ``pool_transfer_fit``), or
+        else reconstructed as it is. Only the fit makes a book of one from the late pool,
+        or of one the other image shows only with a side along the epipolar lines short
+        as well (``find_in_other_view``'s ``along_short``, asked after the strict look).
         """
         cfg = self.cfg.stereo
         overlap = cfg.transfer_max_overlap
@@ -1346,15 +1355,30 @@ class Detector:
             return any(quad_overlap(q, taken[cam][t]) > overlap
                        for t in np.concatenate([np.flatnonzero(near), rest]))
 
+        fit = (cfg.pool_transfer_fit and self.cfg.flat_refit_px > 0
+               and self.cfg.flat_refit_sides > 0)
         out: list[tuple[Pair, BookDetection]] = []
         for src, dst in (("left", "right"), ("right", "left")):
-            pool = Quads.concat([segs[src].pool, segs[src].open_pool])
+            # the pool and open pool, then the late pool (Segmentation.late_pool: the other
+            # T_H's candidates with sides unseen), each the most edge pixels first, the
+            # first pool_transfer_max of each tried; the small pool is in the concatenation
+            # only to keep the index of each refined quad (Detector._from_pool's order)
+            parts = [segs[src].pool, segs[src].open_pool, segs[src].small_pool]
+            first = len(parts[0]) + len(parts[1])
+            late = first + len(parts[2])
+            extra = [segs[src].late_pool] if cfg.pool_transfer_late else []
+            pool = Quads.concat(parts + extra)
+            order = (np.argsort(-pool.n_f[:first], kind="stable").tolist()
+                     + (late + np.argsort(-pool.n_f[late:], kind="stable")).tolist())
             around = _outlines(Q[src], src, found + out, up)
             tried: list[NDArray[np.float64]] = []
+            count = [0, 0]  # tried of the pools, of the late pool
             near = meet(pool.corners, src)  # (a book found below is looked at in full)
-            for k in np.argsort(-pool.n_f, kind="stable").tolist():
-                if len(tried) >= cfg.pool_transfer_max:
+            for k in order:
+                if min(count) >= cfg.pool_transfer_max:
                     break
+                if count[int(k >= late)] >= cfg.pool_transfer_max:
+                    continue
                 if over_taken(src, pool.corners[k], near[k]):
                     continue
                 # the pool holds many variants of one quad (other Hough lines of its sides,
@@ -1364,6 +1388,7 @@ class Detector:
                 if any(np.abs(pool.corners[k] - t).max() <= 3.0 for t in tried):
                     continue
                 tried.append(pool.corners[k])
+                count[int(k >= late)] += 1
                 # a coarse look first (within 3 px): a candidate that shows two sides or
                 # more along less than pool_transfer_seen is not worth a refinement
                 coarse = side_evidence(grads[src], pool.corners[k], 0.5 * strength[src],
@@ -1380,21 +1405,40 @@ class Detector:
                     continue
                 if _sides_on(quad, around).sum() >= 2:
                     continue  # desk between found books: its sides are theirs
+                unseen = int(np.argmin(shown)) if part.any() else None
+                if unseen is not None and k >= late and not fit:
+                    continue  # (only the fit makes a book of it)
+                look = dict(gray_from=ideal[src], gray_to=ideal[dst], unseen=unseen, cfg=cfg)
                 there = find_in_other_view(quad, Q[src], Q[dst], desk_plane, grads[dst],
-                                           strength[dst], gray_from=ideal[src],
-                                           gray_to=ideal[dst],
-                                           unseen=int(np.argmin(shown)) if part.any() else None,
-                                           cfg=cfg)
+                                           strength[dst], **look)
+                # only the fit below makes a book of a late candidate with a side unseen
+                # (the other T_H's candidates hold shadows and the desk's grain), or of one
+                # whose other image shows a side along the epipolar lines short as well
+                fit_only = unseen is not None and k >= late
+                if there is None and unseen is not None and fit:
+                    there = find_in_other_view(quad, Q[src], Q[dst], desk_plane, grads[dst],
+                                               strength[dst], along_short=True, **look)
+                    fit_only = True
                 if there is None or over_taken(dst, there[0]):
                     continue
                 c = {src: quad, dst: there[0]}
                 if texture is not None and self._print_on_desk(rig, c["left"], desk_plane,
                                                                texture):
                     continue  # desk between books, its sides theirs
-                pair, book, _ = self._reconstruct_or_why(
-                    rig, _in_eq1_order(Pair(c["left"], c["right"], float(pool.support[k].mean()),
-                                            0.0, transferred=src)),
-                    desk_plane, texture)
+                raw = Pair(c["left"], c["right"], float(pool.support[k].mean()), 0.0,
+                           transferred=src)
+                book = None
+                if unseen is not None and fit:
+                    # the unseen side placed nothing in the other image: the cover laid
+                    # flat on the sides that did (_transferred_fit), where that is a book
+                    P = _transferred_fit(rig, raw, dst, unseen, desk_plane,
+                                         self.cfg.flat_refit_sides)
+                    if P is not None:
+                        pair, book, _ = self._reconstruct_or_why(
+                            rig, _in_eq1_order(_pair_at(rig, raw, P)), desk_plane, texture)
+                if book is None and not fit_only:
+                    pair, book, _ = self._reconstruct_or_why(rig, _in_eq1_order(raw),
+                                                             desk_plane, texture)
                 if book is None:
                     continue
                 taken["left"].append(pair.left)
@@ -2757,6 +2801,42 @@ def _in_eq1_order(pair: Pair) -> Pair:
     shift = int(np.argmin(pair.left.sum(axis=1)))
     return replace(pair, left=np.roll(pair.left, -shift, axis=0),
                    right=np.roll(pair.right, -shift, axis=0))
+
+
+def _transferred_fit(rig: StereoRig, pair: Pair, dst: str, unseen: int,
+                     desk_plane: NDArray[np.float64], max_off: float,
+                     ) -> NDArray[np.float64] | None:
+    """The cover of a pair the one-image search made (:meth:`Detector._from_pool_one_image`)
+    as one rectangle parallel to the desk (:func:`rovis.geometry.fit_rectangle_sides`),
+    fitted to every side of the image it was found in and, in the other image ``dst``, to
+    the two sides that run from the ``unseen`` side to its opposite only.
+
+    The unseen side (a book's end against another's, end to end) showed no edge to place
+    it. That leaves the opposite side (the other end) as the one across the epipolar lines
+    that places the height, and refined in each image on its own it is a pixel or two off
+    (a thick book's end face blurs it): laid on it, the cover comes out 10–20 mm off in
+    height (Table II's two plain books end to end, docs/stereo.md). The two sides from end
+    to end are refined along their whole length.
+
+    Returns the corners (4, 3), world metres, in the pair's order, or None where the fit
+    fails or misses a side it used by more than ``max_off`` pixels
+    (``DetectConfig.flat_refit_sides``).
+    """
+    P0 = geometry.triangulate(rig.Q_L, rig.Q_R, pair.left, pair.right)
+    if not np.all(np.isfinite(P0)):
+        return None
+    use = np.ones((2, 4), bool)
+    use[0 if dst == "left" else 1, [unseen, (unseen + 2) % 4]] = False
+    try:
+        P, off = geometry.fit_rectangle_sides(rig.Q_L, rig.Q_R, pair.left, pair.right, P0,
+                                              desk_plane, use=use)
+    except ValueError:
+        return None
+    # the rectangle must lie on the sides it was fitted to: projected, any rectangle is a
+    # flat cover, and the pose checks would pass a fit to sides that make none
+    if not np.all(np.isfinite(P)) or np.abs(off[use]).max() > max_off:
+        return None
+    return P
 
 
 def _pair_at(rig: StereoRig, pair: Pair, P: NDArray[np.float64]) -> Pair:

@@ -115,6 +115,16 @@ class StereoConfig:
     pool_transfer_max: int = 24  # candidates looked for per image, the most edge pixels first
     pool_transfer_seen: float = 0.8
     pool_transfer_part: float = 0.15
+    # ...the late pool's candidates too (Segmentation.late_pool), after the others, the
+    # first pool_transfer_max of them; one with a side unseen is a book only as the fit
+    # below makes it
+    pool_transfer_late: bool = True
+    # A candidate with a side unseen is laid flat on its sides (geometry.fit_rectangle_sides)
+    # but, in the other image, the unseen one and its opposite, where that fit lies within
+    # DetectConfig.flat_refit_sides of the sides it used (pipeline._transferred_fit); only
+    # so may the other image show a side along the epipolar lines short as well
+    # (find_in_other_view's along_short)
+    pool_transfer_fit: bool = True
     # Where a quarter or more of a cover found before the extent step lies under no cover
     # after it (a pool pair that was two touching books, cut back to one), the pool is
     # looked at again: the other book's pair had given way to the union
@@ -457,7 +467,7 @@ def find_in_other_view(corners: ArrayLike, Q_from: ArrayLike, Q_to: ArrayLike,
                        desk_plane: ArrayLike | None, grad_to: Gradients, min_strength: float, *,
                        gray_from: NDArray[np.uint8] | None = None,
                        gray_to: NDArray[np.uint8] | None = None,
-                       unseen: int | None = None,
+                       unseen: int | None = None, along_short: bool = False,
                        cfg: StereoConfig = StereoConfig()) -> tuple[NDArray[np.float64], float] | None:
     """The cover found in one image, looked for in the other by its height above the desk.
 
@@ -467,9 +477,11 @@ def find_in_other_view(corners: ArrayLike, Q_from: ArrayLike, Q_to: ArrayLike,
     strongest edges (median gradient across each, best of ±1 px, weighted by how much the
     side crosses the epipolar lines) wins if every side reaches ``min_strength`` (but one
     within 30° of the epipolar lines may fall short: beyond the paper, a far side of the
-    desk's brightness shows no step; with ``unseen``, that side instead); its sides are refit to the gradient (:func:`rovis.segment.boundary.refine_quad`). Used for
-    covers the segmentation found in one image only: their edges are often there in the
-    other image too, just below what its Hough stage kept.
+    desk's brightness shows no step; with ``unseen``, that side instead, or with
+    ``along_short`` as well); its sides are refit to the gradient
+    (:func:`rovis.segment.boundary.refine_quad`). Used for covers the segmentation found
+    in one image only: their edges are often there in the other image too, just below what
+    its Hough stage kept.
 
     Without the desk plane, the cover's own plane is taken from the quad
     (:func:`rectangle_normal`: a rectangle's image fixes its plane's orientation) and swept
@@ -495,7 +507,9 @@ def find_in_other_view(corners: ArrayLike, Q_from: ArrayLike, Q_to: ArrayLike,
         A side (from corner ``unseen`` to the next) that need show no edge in the other
         image either, and places no height: its own image shows it along part of its
         length only (a neighbour of the cover's tone touches it there). Beyond it, every
-        side must show its edge.
+        side must show its edge, unless ``along_short``: then one side along the epipolar
+        lines may still fall short, as without ``unseen`` (with one side across the lines
+        left to place the height, the caller must check the cover it makes).
 
     Returns
     -------
@@ -527,12 +541,14 @@ def find_in_other_view(corners: ArrayLike, Q_from: ArrayLike, Q_to: ArrayLike,
     best = int(np.argmax(score))
     # Every side must show its edge, except one along the epipolar lines (w < 0.5: within
     # 30° of them), which places no height: the cover of the desk's brightness shows no
-    # step at its far side, in this image as in the other. (The ``unseen`` side instead.)
+    # step at its far side, in this image as in the other. (The ``unseen`` side instead,
+    # or with ``along_short`` as well.)
     weak = strength[best] < min_strength
     if unseen is not None:
-        if np.delete(weak, unseen).any():
+        weak[unseen] = False  # it places nothing
+        if not along_short and weak.any():
             return None
-    elif weak.sum() > 1 or (weak.any() and w[weak].max() >= 0.5):
+    if weak.sum() > 1 or (weak.any() and w[weak].max() >= 0.5):
         return None
     refined = refine_quad(grad_to, pred[best])
     if np.linalg.norm(refined - pred[best], axis=1).max() > cfg.max_refine_px:

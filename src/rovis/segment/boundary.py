@@ -222,7 +222,8 @@ class Segmentation:
     late_pool : Quads
         Beyond the paper: as :attr:`open_pool`, from the closed loop's other evaluations
         (``SegmentConfig.late_open``), less those near :attr:`pool` or :attr:`open_pool`;
-        stereo pairs them after the height maps, before the one-image search.
+        stereo pairs them after the height maps, and the one-image search looks for them
+        in the other image after the others (``StereoConfig.pool_transfer_late``).
     small_pool : Quads
         Beyond the paper: the four-sided candidates of every evaluation smaller than a
         cover (``SegmentConfig.pool_min_area_px`` to ``QuadConfig.min_area_px``), the most
