@@ -257,16 +257,24 @@ def test_a_book_from_the_small_candidates_in_a_pass_of_their_own(book):
     found = det._from_pool(rig, small, grads, [], DESK, None, extra="small")
     assert len(found) == 1
     assert np.linalg.norm(found[0][1].pose.center - P.mean(axis=0)) < 0.005  # metres
-    # the small and the late pool in one segmentation: each refined quad cached by its
-    # index is the one of its own pool (the late pass after the small one, one cache)
+    # the small and the late pool in one segmentation, one cache for the small pass and
+    # the late one after it: each refined quad is cached under its own corners, the
+    # refinement of that quad (whichever pool it is in)
+    from rovis.segment.boundary import refine_quad_fits
     decoy = _rectangle(center=(0.7, 0.5), size=(0.15, 0.10), z=0.02, yaw_deg=-30.0)
     both = {cam: replace(small[cam], late_pool=_pool([q]))
             for cam, q in _projected(rig, decoy).items()}
     refined: dict = {}
     assert len(det._from_pool(rig, both, grads, [], DESK, None, refined, extra="small")) == 1
-    assert all(k == 0 for _, k in refined)  # the small quad, after the empty pools
+    own = {(cam, both[cam].small_pool.corners[0].tobytes()) for cam in both}
+    assert set(refined) == own  # the small quads only
     det._from_pool(rig, both, grads, [], DESK, None, refined, extra="late")
-    assert sorted({k for _, k in refined}) == [0, 1]  # the decoy refined at 1, not at 0
+    late = {(cam, both[cam].late_pool.corners[0].tobytes()) for cam in both}
+    assert set(refined) == own | late  # the decoy's too, apart
+    for cam, key in refined:
+        corners = np.frombuffer(key).reshape(4, 2)
+        np.testing.assert_array_equal(refined[cam, key][0],
+                                      refine_quad_fits(grads[cam], corners)[0])
     # a small quad is no partner in the late pass: the book's small quad in one image and
     # its late one in the other make no pair there (nor in the small pass, without the late)
     mixed = {"left": small["left"],

@@ -71,13 +71,12 @@ from rovis.undistort import IdealView
 # last, a cover over one both segmentations found (Detector._without_overlaps).
 DROP_REASONS = ("degenerate", "too long", "too small", "tilted", "height", "side on desk",
                 "texture height", "skewed", "printed", "overlaps")
-# A frame's pool candidates refined (Detector._from_pool): (camera, index into the pool,
-# open pool and small pool concatenated, the late pool after them in the late and the
-# small_open passes; Detector._from_pool_one_image reads the same indices) →
-# corners with and without the inward search, (4, 2) each, and each side's fit
+# A frame's pool candidates refined (Detector._from_pool, read again by
+# Detector._from_pool_one_image): (camera, the candidate's corners as bytes: whichever pool
+# it is in) → corners with and without the inward search, (4, 2) each, and each side's fit
 # (refine_sides's, with the inward search): :func:`refine_quad_fits`.
-Refined = dict[tuple[str, int], tuple[NDArray[np.float64], NDArray[np.float64],
-                                      list[Fit | None]]]
+Refined = dict[tuple[str, bytes], tuple[NDArray[np.float64], NDArray[np.float64],
+                                        list[Fit | None]]]
 # The checks after which a pair is retried with the other quads the closed loop found over
 # it (Segmentation.alternatives): those an outline paired with a cover fails.
 ALTERNATIVE_REASONS = ("tilted", "side on desk", "height", "texture height")
@@ -1057,11 +1056,16 @@ class Detector:
         i, j, pp = i[order], j[order], pp.take(order)
         cache: Refined = {} if refined is None else refined
 
-        def sub_pixel(cam: str, k: int, inward: bool = True) -> NDArray[np.float64]:
+        def fitted(cam: str, k: int) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                                              list[Fit | None]]:
             # with and without the inward search at once: most pairs are tried both ways
-            if (cam, k) not in cache:
-                cache[cam, k] = refine_quad_fits(grads[cam], pool[cam].corners[k])
-            return cache[cam, k][0 if inward else 1]
+            key = (cam, pool[cam].corners[k].tobytes())
+            if key not in cache:
+                cache[key] = refine_quad_fits(grads[cam], pool[cam].corners[k])
+            return cache[key]
+
+        def sub_pixel(cam: str, k: int, inward: bool = True) -> NDArray[np.float64]:
+            return fitted(cam, k)[0 if inward else 1]
 
         def flat(left: NDArray[np.float64], right: NDArray[np.float64]) -> NDArray[np.bool_]:
             P = geometry.triangulate_dlt(Q["left"], Q["right"], left.reshape(-1, 2),
@@ -1094,7 +1098,7 @@ class Detector:
             # whether the inward search moved a side of each pair's quad, per image: where
             # it did not, the quad without it is the same, and a try of the pair with that
             # quad is one made before (it failed: not made again, not asked of flat)
-            moved = {cam: np.array([not np.array_equal(cache[cam, k][0], cache[cam, k][1])
+            moved = {cam: np.array([not np.array_equal(*fitted(cam, k)[:2])
                                     for k in ks.tolist()], bool)
                      for cam, ks in (("left", i[index]), ("right", j[index]))}
             # The refinement looks for a cover edge inside a side facing the camera (a page
@@ -1126,9 +1130,8 @@ class Detector:
             # each candidate's seen sides fitted once, for every pair it is in (the fits
             # its refinement made: it is refined before it is completed)
             if (cam, k) not in side_fits:
-                sub_pixel(cam, k)
                 side_fits[cam, k] = [f if pool[cam].lines[k, s] >= 0 else None
-                                     for s, f in enumerate(cache[cam, k][2])]
+                                     for s, f in enumerate(fitted(cam, k)[2])]
             return side_fits[cam, k]
 
         def seen(a: int) -> dict[str, NDArray[np.bool_]]:
@@ -1361,14 +1364,11 @@ class Detector:
         for src, dst in (("left", "right"), ("right", "left")):
             # the pool and open pool, then the late pool (Segmentation.late_pool: the other
             # T_H's candidates with sides unseen), each the most edge pixels first, the
-            # first pool_transfer_max of each tried; the small pool is in the concatenation
-            # only to keep the index of each refined quad (Detector._from_pool's order)
-            parts = [segs[src].pool, segs[src].open_pool, segs[src].small_pool]
-            first = len(parts[0]) + len(parts[1])
-            late = first + len(parts[2])
+            # first pool_transfer_max of each tried
+            late = len(segs[src].pool) + len(segs[src].open_pool)
             extra = [segs[src].late_pool] if cfg.pool_transfer_late else []
-            pool = Quads.concat(parts + extra)
-            order = (np.argsort(-pool.n_f[:first], kind="stable").tolist()
+            pool = Quads.concat([segs[src].pool, segs[src].open_pool] + extra)
+            order = (np.argsort(-pool.n_f[:late], kind="stable").tolist()
                      + (late + np.argsort(-pool.n_f[late:], kind="stable")).tolist())
             around = _outlines(Q[src], src, found + out, up)
             tried: list[NDArray[np.float64]] = []
@@ -1395,7 +1395,8 @@ class Detector:
                                        reach_px=3.0)
                 if np.sort(coarse)[1] < cfg.pool_transfer_seen:
                     continue
-                quad = order_corners(refined[src, k][0] if (src, k) in refined
+                key = (src, pool.corners[k].tobytes())
+                quad = order_corners(refined[key][0] if key in refined
                                      else refine_quad(grads[src], pool.corners[k]))
                 if over_taken(src, quad):
                     continue
