@@ -138,6 +138,20 @@ def _sides_moved(quad, px):
     return np.array([intersect(*lines[s - 1], *lines[s]) for s in range(4)])
 
 
+def _blinded(grad, quad, sides):
+    """``grad`` with no gradient along the middle 70 % of the given sides of ``quad``
+    (4, 2), 7 px wide: sides that show no edge."""
+    import cv2
+    from dataclasses import replace
+    mask = np.zeros(grad.shape, np.uint8)
+    for s in sides:
+        a, c = quad[s], quad[(s + 1) % 4]
+        cv2.line(mask, tuple(np.rint(a + 0.15 * (c - a)).astype(int)),
+                 tuple(np.rint(a + 0.85 * (c - a)).astype(int)), 255, 7)
+    return replace(grad, dx=np.where(mask > 0, 0, grad.dx).astype(grad.dx.dtype),
+                   dy=np.where(mask > 0, 0, grad.dy).astype(grad.dy.dtype))
+
+
 def _ideal_grad(rig, raw, camera):
     import cv2
 
@@ -398,8 +412,6 @@ def test_a_cover_is_found_in_the_other_image_with_one_side_along_the_epipolar_li
     # a far side of the desk's brightness shows no step in either image: the sides across
     # the epipolar lines still place the cover; without one of those, no cover (unless the
     # caller names that side: find_in_other_view's ``unseen``)
-    import cv2
-    from dataclasses import replace
     sc, r = scene
     rig = sc.rig
     gray_l, _ = _ideal_grad(rig, r.left, "left")
@@ -420,11 +432,7 @@ def test_a_cover_is_found_in_the_other_image_with_one_side_along_the_epipolar_li
             kind = "along" if slope < 0.25 else "across" if slope > 0.8 else None
             if kind is None:
                 continue
-            mask = np.zeros(grad_r.shape, np.uint8)  # the side's middle 70 %, 7 px wide
-            cv2.line(mask, tuple(np.rint(a + 0.15 * (c - a)).astype(int)),
-                     tuple(np.rint(a + 0.85 * (c - a)).astype(int)), 255, 7)
-            blind = replace(grad_r, dx=np.where(mask > 0, 0, grad_r.dx).astype(grad_r.dx.dtype),
-                            dy=np.where(mask > 0, 0, grad_r.dy).astype(grad_r.dy.dtype))
+            blind = _blinded(grad_r, dst, [s])
             got = find_in_other_view(*args, blind, 10.0, gray_from=gray_l, gray_to=gray_r)
             if kind == "along":
                 assert got is not None and np.abs(got[0] - dst).max() < 1.5  # px
@@ -450,23 +458,11 @@ def test_with_a_side_excused_one_side_along_the_epipolar_lines_may_still_fall_sh
     # shows no edge) whose long side along the epipolar lines shows only its page block's
     # foot in the other image: with ``along_short``, its other end, across the lines,
     # still places it.
-    import cv2
-    from dataclasses import replace
     sc, r = scene
     rig = sc.rig
     gray_l, _ = _ideal_grad(rig, r.left, "left")
     gray_r, grad_r = _ideal_grad(rig, r.right, "right")
     placed: list[bool] = []
-
-    def blinded(dst, sides):
-        mask = np.zeros(grad_r.shape, np.uint8)  # each side's middle 70 %, 7 px wide
-        for s in sides:
-            a, c = dst[s], dst[(s + 1) % 4]
-            cv2.line(mask, tuple(np.rint(a + 0.15 * (c - a)).astype(int)),
-                     tuple(np.rint(a + 0.85 * (c - a)).astype(int)), 255, 7)
-        return replace(grad_r, dx=np.where(mask > 0, 0, grad_r.dx).astype(grad_r.dx.dtype),
-                       dy=np.where(mask > 0, 0, grad_r.dy).astype(grad_r.dy.dtype))
-
     for b in r.truth["books"]:
         if min(b["visible_left"], b["visible_right"]) < 0.99:
             continue
@@ -481,7 +477,7 @@ def test_with_a_side_excused_one_side_along_the_epipolar_lines_may_still_fall_sh
         if not along or len(across) < 2:
             continue
         u, a = across[0], along[0]
-        blind = blinded(dst, [u, a])
+        blind = _blinded(grad_r, dst, [u, a])
         # by default every side but the excused one must show (the pipeline asks this
         # first, and the looser look only where it then fits the cover, _transferred_fit)
         assert find_in_other_view(*args, blind, 10.0, gray_from=gray_l, gray_to=gray_r,

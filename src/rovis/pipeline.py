@@ -1321,8 +1321,9 @@ class Detector:
         at each height, that side excused there too. The first
         ``StereoConfig.pool_transfer_max`` candidates per image that overlap no book and
         differ from those tried before (a corner more than 3 px away) are tried, the most
-        edge pixels first, those that show two sides or more along less than
-        ``pool_transfer_seen`` at a coarse look (within 3 px) not refined. None may have two
+        edge pixels first (as many again of the late pool, after them), those that show two
+        sides or more along less than ``pool_transfer_seen`` at a coarse look (within 3 px)
+        not refined. None may have two
         sides on the outlines of books found by then (cover and page block), nor (with
         ``texture``) print inside that matches best on the desk: desk between books, its
         sides theirs. Each must pass the pose checks.
