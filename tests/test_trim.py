@@ -249,10 +249,11 @@ def _end_in(truth, end, by):
     return short
 
 
-def _beyond(f, truth, end):
-    """A pair of another book over the outer 15 mm of cover ``truth``'s end (see
-    :func:`_end_in`) and 20 cm beyond: a strip grown over that end is partly its, not
-    the cover's, though the grown cover overlaps it by under a tenth."""
+def _beyond(f, truth, end, book):
+    """Another book over the outer 15 mm of cover ``truth``'s end (see :func:`_end_in`)
+    and 20 cm beyond, its pair and ``book`` with its corners: a strip grown over that end
+    is partly its, not the cover's, though the grown cover overlaps it by under a tenth
+    (and it is no piece of the grown cover: it reaches 20 cm beyond it)."""
     a, u = _long_axis(truth)
     outward = u if end == 1 else -u
     far = [a + 1, a + 2] if end == 1 else [a, (a + 3) % 4]
@@ -260,8 +261,8 @@ def _beyond(f, truth, end):
     beyond = truth.copy()
     beyond[near] = truth[far] - 0.015 * outward
     beyond[far] = truth[far] + 0.20 * outward
-    return Pair(geometry.project(f.rig.Q_L, beyond), geometry.project(f.rig.Q_R, beyond),
-                1.0, 0.0)
+    return (Pair(geometry.project(f.rig.Q_L, beyond), geometry.project(f.rig.Q_R, beyond),
+                 1.0, 0.0), replace(book, corners_world=beyond))
 
 
 @pytest.mark.parametrize("end", [0, 1])
@@ -279,10 +280,25 @@ def test_a_cover_cut_short_is_grown_to_its_end(book_scene, end):
     assert np.linalg.norm(grown.pose.center[:2] - np.asarray(sc.books[0].center)[:2]) < 0.004
     # another book over the outer 15 mm of the cut-off end: not grown into
     (_, kept), _ = det._grown(f.rig, res.segmentation, f.grads,
-                              [(pair, book), (_beyond(f, truth, end), book)], f.desk_plane,
+                              [(pair, book), _beyond(f, truth, end, book)], f.desk_plane,
                               texture, maps)
     assert kept is book
     assert max(kept.pose.size[:2]) == pytest.approx(0.16, abs=0.005)  # m
+    # the cut-off 4 cm found on its own (the cover's part beyond a band): a piece of the
+    # grown cover, taken in; without trim.grow_absorb the strip over it bars the grow
+    a, u = _long_axis(truth)
+    piece = _end_in(truth, 1 - end, np.linalg.norm(truth[a + 1] - truth[a]) - 0.04)
+    found = [(pair, book), (Pair(geometry.project(f.rig.Q_L, piece),
+                                 geometry.project(f.rig.Q_R, piece), 1.0, 0.0),
+                            replace(book, corners_world=piece))]
+    (_, whole), = det._grown(f.rig, res.segmentation, f.grads, found, f.desk_plane, texture,
+                             maps)
+    assert max(whole.pose.size[:2]) == pytest.approx(0.20, abs=0.004)  # m
+    det.cfg = replace(det.cfg, trim=replace(det.cfg.trim, grow_absorb=0.0))
+    (_, kept), (_, other) = det._grown(f.rig, res.segmentation, f.grads, found, f.desk_plane,
+                                       texture, maps)
+    assert kept is book and other is found[1][1]
+    det.cfg = replace(det.cfg, trim=replace(det.cfg.trim, grow_absorb=TrimConfig().grow_absorb))
     # the whole cover stays as it is
     pair, book, _ = _book(det, f, truth, texture)
     (_, same), = det._grown(f.rig, res.segmentation, f.grads, [(pair, book)], f.desk_plane,
@@ -303,7 +319,7 @@ def test_a_cover_cut_short_is_grown_to_its_end_by_its_print(book_scene, end):
     assert np.linalg.norm(grown.pose.center[:2] - np.asarray(sc.books[0].center)[:2]) < 0.004
     # another book over the outer 15 mm of the cut-off end
     (_, kept), _ = det._grown_by_print(f.rig, res.segmentation, f.grads,
-                                       [(pair, book), (_beyond(f, truth, end), book)],
+                                       [(pair, book), _beyond(f, truth, end, book)],
                                        f.desk_plane, texture)
     assert kept is book
     # the whole cover stays as it is: beyond its sides the desk lines up lower

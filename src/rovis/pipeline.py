@@ -46,7 +46,8 @@ from rovis.segment.methods import METHODS, segment
 from rovis.segment.boundary import (Fit, refine_quad, refine_quad_both, refine_quad_fits,
                                     side_evidence)
 from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
-from rovis.split import Split, SplitConfig, join_halves, map_step, split_union_heights
+from rovis.split import (Split, SplitConfig, join_halves, map_step, piece_of,
+                         split_union_heights)
 from rovis.track import TrackConfig, follow
 from rovis.trim import (TrimConfig, cut_cover, grow_run, height_profile, lateral_grow, map_height,
                         print_grow, trim_side)
@@ -1694,10 +1695,14 @@ class Detector:
         up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
         overlap = self.cfg.stereo.transfer_max_overlap
         out = list(found)
+        gone: set[int] = set()  # the pieces grown covers took in
         for i, (pair, book) in enumerate(found):
+            if i in gone:
+                continue
             P, height = _on_cover_plane(rig, pair, desk_plane)
             drop = _drop(P, desk_plane)
             moved = False
+            taken: set[int] = set()  # the pieces this cover's moves took in
             for s in range(4):
                 below = np.inf
                 for _ in range(self.cfg.trim.grow_tries):
@@ -1707,37 +1712,56 @@ class Detector:
                     if d <= 0 or d >= below - 2 * self.cfg.extent.step:
                         break
                     grown = _moved(P, s, np.array([d]))[0]
+                    pieces = self._pieces_of(out, i, grown, desk_plane, gone)
                     if self._grow_refused(rig, grads, strength, out, i, P, grown, s, drop, up,
-                                          strip_overlap):
+                                          strip_overlap, gone | pieces):
                         below = d - self.cfg.trim.grow_retry  # a nearer edge, if any
                         continue
                     P, moved = grown, True
+                    taken |= pieces
                     break
             if not moved:
                 continue
             left = geometry.project(rig.Q_L, P)
-            if any(quad_overlap(left, p.left) > overlap for k, (p, _) in enumerate(out) if k != i):
+            if any(quad_overlap(left, p.left) > overlap for k, (p, _) in enumerate(out)
+                   if k != i and k not in gone and k not in taken):
                 continue
             trial = replace(pair, left=left, right=geometry.project(rig.Q_R, P))
             new_pair, new_book, _ = self._reconstruct_or_why(rig, trial, desk_plane, texture)
             if new_book is not None:
                 out[i] = (new_pair, new_book)
-        return out
+                gone |= taken
+        return [found_k for k, found_k in enumerate(out) if k not in gone]
+
+    def _pieces_of(self, out: list[tuple[Pair, BookDetection]], i: int,
+                   grown: NDArray[np.float64], desk_plane: NDArray[np.float64],
+                   gone: set[int]) -> set[int]:
+        """The books of ``out`` but book ``i`` and ``gone`` that are pieces of the cover
+        ``grown`` (4, 3), as :func:`rovis.split.piece_of` tells (``trim.grow_absorb``,
+        ``split.join_step``; none where ``grow_absorb`` is 0)."""
+        touch = self.cfg.trim.grow_absorb
+        if touch <= 0:
+            return set()
+        return {k for k, (_, other) in enumerate(out) if k != i and k not in gone
+                and piece_of(grown, other.corners_world, desk_plane, touch,
+                             self.cfg.split.join_step)}
 
     def _grow_refused(self, rig: StereoRig, grads: dict[str, Gradients],
                       strength: dict[str, float], out: list[tuple[Pair, BookDetection]],
                       i: int, P: NDArray[np.float64], grown: NDArray[np.float64], s: int,
                       drop: NDArray[np.float64], up: NDArray[np.float64],
-                      strip_overlap: float | None) -> bool:
+                      strip_overlap: float | None, ignore: set[int] | frozenset[int] = frozenset(),
+                      ) -> bool:
         """Whether :meth:`_with_sides_grown` refuses to move side ``s`` of book ``i``'s
-        cover ``P`` (4, 3) out to ``grown``'s: its added strip over another book, the new
+        cover ``P`` (4, 3) out to ``grown``'s: its added strip over another book (not one
+        of ``ignore``: the pieces of the grown cover, and those taken in before), the new
         side on the desk, or its page block's foot no edge."""
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         if strip_overlap is not None:
             added = geometry.project(rig.Q_L, np.array([P[s], P[(s + 1) % 4],
                                                         grown[(s + 1) % 4], grown[s]]))
             if any(_shared(added, p.left) > strip_overlap
-                   for k, (p, _) in enumerate(out) if k != i):
+                   for k, (p, _) in enumerate(out) if k != i and k not in ignore):
                 return True
         if self.cfg.extent.height_check and _on_desk(grown, s, Q, grads, up, drop,
                                                       self.cfg.extent):

@@ -518,6 +518,50 @@ def join_halves(A: NDArray[np.float64], B: NDArray[np.float64], desk_plane: NDAr
     return None
 
 
+def piece_of(U: NDArray[np.float64], B: NDArray[np.float64], desk_plane: NDArray[np.float64],
+             touch: float, step: float) -> bool:
+    """Whether found book ``B`` is a piece of cover ``U``: the part of one cover beyond a
+    printed band, found on its own, that a side of the other part grew over.
+
+    ``B`` lies at ``U``'s height (its mean within ``step``), and each of its corners lies on
+    ``U``'s outline: within ``touch`` of one of ``U``'s sides and outside none by more. A
+    piece spans the cover from side to side, so its corners are the cover's own or lie on
+    its sides; a neighbouring book a grown side went over is narrower or wider than the
+    cover, or lies beside it, and leaves corners off them. (:func:`join_halves` asks the
+    same of two halves that touch; here they may overlap, each refined on its own, and a
+    few millimetres apart at the corners.)
+
+    Parameters
+    ----------
+    U, B : ndarray, shape (4, 3)
+        The cover's and the found book's world corners, each in cyclic order (metres).
+    desk_plane : ndarray, shape (4,)
+        ``[nx, ny, nz, d]`` (world, normal up).
+    touch, step : float
+        Metres.
+    """
+    h = geometry.plane_distance(desk_plane, np.vstack([U, B]))
+    if abs(h[:4].mean() - h[4:].mean()) > step:
+        return False
+    up = _unit(np.asarray(desk_plane[:3], np.float64))
+    c = U.mean(axis=0)
+    B = B - np.outer((B - c) @ up, up)  # onto the cover's plane
+    for p in B:
+        near = np.inf
+        for k in range(4):
+            a, b = U[k], U[(k + 1) % 4]
+            inward = _unit(np.cross(up, b - a))
+            if inward @ (c - a) < 0:
+                inward = -inward
+            if (p - a) @ inward < -touch:  # outside the cover beyond this side
+                return False
+            t = np.clip((p - a) @ (b - a) / max(float((b - a) @ (b - a)), 1e-12), 0.0, 1.0)
+            near = min(near, float(np.linalg.norm(p - (a + t * (b - a)))))
+        if near > touch:
+            return False
+    return True
+
+
 def _off_line(p: NDArray[np.float64], a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
     """The distance of point ``p`` from the line through ``a`` and ``b`` (3-D)."""
     d = _unit(b - a)

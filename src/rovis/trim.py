@@ -98,6 +98,11 @@ class TrimConfig:
     Either grow's move refused by these guards (the strip over another book, the new side
     on the desk, no edge at its page block's foot) is asked again, ending ``grow_retry``
     short of it, for a nearer edge: ``grow_tries`` asks in all (1: the first move only).
+    A found book the strip lies over is no bar where it is a piece of the grown cover
+    (``grow_absorb``, :func:`rovis.split.piece_of`: at its height within the split's
+    ``join_step``, each corner within ``grow_absorb`` of the grown cover's outline): the
+    cover's part beyond a printed band, found on its own. The grown cover takes its place
+    (0: never).
 
     The grow to the neighbours' ends (``lateral_grow``, :func:`lateral_grow`; stop 51):
     where the maps' grow finds no edge beyond a side (a picture cover's edge of the
@@ -145,6 +150,7 @@ class TrimConfig:
     print_continuation: float = 0.5
     grow_tries: int = 3  # asks for a side's grow, a refused move's nearer edge after it
     grow_retry: float = 0.005  # how far short of a refused move the next ask ends
+    grow_absorb: float = 0.008  # a piece's corners within this of the grown cover's outline
     lateral_grow: bool = True
     lateral_run: float = 0.03  # the maps' spill beyond a cover's edge is 5-20 mm
     lateral_start: float = 0.003  # at a cover's own corner its sides end
@@ -174,6 +180,7 @@ class TrimConfig:
              and self.print_beyond > 0 and self.print_piece > 0),
             ("print_edges", self.print_edges >= 1),
             ("grow_tries", self.grow_tries >= 1), ("grow_retry", self.grow_retry > 0),
+            ("grow_absorb", self.grow_absorb >= 0),
             ("lateral_*", all(v >= 0 for v in (
                 self.lateral_run, self.lateral_start, self.lateral_gap, self.lateral_spread,
                 self.lateral_back, self.lateral_ahead, self.lateral_sigmas))
@@ -189,6 +196,7 @@ class TrimConfig:
                              "in [0, 1]; print_reach, print_min, print_near, print_beyond "
                              "and print_piece positive, print_foot_margin >= 0, "
                              "print_edges >= 1, grow_tries >= 1, grow_retry > 0, "
+                             "grow_absorb >= 0, "
                              "the lateral_* settings >= 0 and lateral_min over 0.01, "
                              "print_min_ncc in "
                              "[-1, 1], print_margin in [-2, 2]; min_samples from 1 to samples; "
