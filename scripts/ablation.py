@@ -62,6 +62,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("two books the maps read at two heights split", ["split.by_map=false"]),
     ("the late pool looked for in the other image", ["stereo.pool_transfer_late=false"]),
     ("a transferred cover laid on its sides from end to end", ["stereo.pool_transfer_fit=false"]),
+    ("a piece of a grown cover taken in", ["trim.grow_absorb=0"]),
 ]
 
 
