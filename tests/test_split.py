@@ -16,9 +16,9 @@ from rovis.segment.edges import CANNY_LOW_RATIO
 from rovis.split import (SplitConfig, _step_along, join_halves, map_step, piece_of,
                          seam_profile, split_union, split_union_heights)
 from rovis.synth import render, sample_scene
-from rovis.trim import TrimConfig
 from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
+from rovis.trim import TrimConfig
 
 from conftest import ideal_images
 from dataset_scene import dataset_scene
@@ -421,6 +421,8 @@ def test_a_part_of_a_cover_spanning_it_is_a_piece_of_it():
                        [0.003, 0.005, 0.0], [-0.002, -0.004, 0.0]])
     assert piece_of(cover, B + jitter, DESK, touch, step)
     assert piece_of(cover, B + [0.0, 0.0, 0.0025], DESK, touch, step)  # within join_step
+    # ...its corners laid on the cover's plane: 2.5 mm higher, still on the outline
+    assert piece_of(cover, B + [0.0, 0.0, 0.0025], DESK, 0.002, step)
 
 
 def test_a_neighbour_a_side_grew_over_is_no_piece_of_the_cover():

@@ -286,7 +286,7 @@ def test_a_cover_cut_short_is_grown_to_its_end(book_scene, end):
     assert max(kept.pose.size[:2]) == pytest.approx(0.16, abs=0.005)  # m
     # the cut-off 4 cm found on its own (the cover's part beyond a band): a piece of the
     # grown cover, taken in; without trim.grow_absorb the strip over it bars the grow
-    a, u = _long_axis(truth)
+    a, _ = _long_axis(truth)
     piece = _end_in(truth, 1 - end, np.linalg.norm(truth[a + 1] - truth[a]) - 0.04)
     found = [(pair, book), (Pair(geometry.project(f.rig.Q_L, piece),
                                  geometry.project(f.rig.Q_R, piece), 1.0, 0.0),
@@ -294,6 +294,12 @@ def test_a_cover_cut_short_is_grown_to_its_end(book_scene, end):
     (_, whole), = det._grown(f.rig, res.segmentation, f.grads, found, f.desk_plane, texture,
                              maps)
     assert max(whole.pose.size[:2]) == pytest.approx(0.20, abs=0.004)  # m
+    # where the grown cover fails the pose checks, the piece stays
+    det._reconstruct_or_why = lambda *args, **kwargs: (None, None, "refused")
+    (_, kept), (_, other) = det._grown(f.rig, res.segmentation, f.grads, found, f.desk_plane,
+                                       texture, maps)
+    assert kept is book and other is found[1][1]
+    del det._reconstruct_or_why
     det.cfg = replace(det.cfg, trim=replace(det.cfg.trim, grow_absorb=0.0))
     (_, kept), (_, other) = det._grown(f.rig, res.segmentation, f.grads, found, f.desk_plane,
                                        texture, maps)

@@ -1691,7 +1691,9 @@ class Detector:
         edge, ``trim.grow_tries`` asks in all; an answer within two offsets of its limit is
         the refused edge cut short there, and ends the asks. A grown cover over more than
         ``stereo.transfer_max_overlap`` of another book (of the smaller, left image) is
-        not kept; the grown cover goes through the pose checks again."""
+        not kept; the grown cover goes through the pose checks again. A book the added strip
+        lies over that is a piece of the grown cover (:meth:`_pieces_of`) is no bar: the
+        kept grown cover takes its place, and the list returned is shorter by it."""
         up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
         overlap = self.cfg.stereo.transfer_max_overlap
         out = list(found)
@@ -1714,7 +1716,7 @@ class Detector:
                     grown = _moved(P, s, np.array([d]))[0]
                     pieces = self._pieces_of(out, i, grown, desk_plane, gone)
                     if self._grow_refused(rig, grads, strength, out, i, P, grown, s, drop, up,
-                                          strip_overlap, gone | pieces):
+                                          strip_overlap, gone | taken | pieces):
                         below = d - self.cfg.trim.grow_retry  # a nearer edge, if any
                         continue
                     P, moved = grown, True
@@ -1750,8 +1752,7 @@ class Detector:
                       strength: dict[str, float], out: list[tuple[Pair, BookDetection]],
                       i: int, P: NDArray[np.float64], grown: NDArray[np.float64], s: int,
                       drop: NDArray[np.float64], up: NDArray[np.float64],
-                      strip_overlap: float | None, ignore: set[int] | frozenset[int] = frozenset(),
-                      ) -> bool:
+                      strip_overlap: float | None, ignore: set[int]) -> bool:
         """Whether :meth:`_with_sides_grown` refuses to move side ``s`` of book ``i``'s
         cover ``P`` (4, 3) out to ``grown``'s: its added strip over another book (not one
         of ``ignore``: the pieces of the grown cover, and those taken in before), the new

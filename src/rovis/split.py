@@ -523,22 +523,28 @@ def piece_of(U: NDArray[np.float64], B: NDArray[np.float64], desk_plane: NDArray
     """Whether found book ``B`` is a piece of cover ``U``: the part of one cover beyond a
     printed band, found on its own, that a side of the other part grew over.
 
-    ``B`` lies at ``U``'s height (its mean within ``step``), and each of its corners lies on
-    ``U``'s outline: within ``touch`` of one of ``U``'s sides and outside none by more. A
-    piece spans the cover from side to side, so its corners are the cover's own or lie on
-    its sides; a neighbouring book a grown side went over is narrower or wider than the
-    cover, or lies beside it, and leaves corners off them. (:func:`join_halves` asks the
-    same of two halves that touch; here they may overlap, each refined on its own, and a
-    few millimetres apart at the corners.)
+    ``B`` lies at ``U``'s height (its mean within ``step``), and each of its corners, laid
+    on ``U``'s plane, lies within ``touch`` of ``U``'s outline. A piece spans the cover from
+    side to side, so its corners are the cover's own or lie on its sides; a neighbouring
+    book a grown side went over is narrower or wider than the cover, or lies beside it,
+    and leaves corners off them. (:func:`join_halves` asks the same of two halves that
+    touch; here they may overlap, each refined on its own, and a few millimetres apart at
+    the corners.)
 
     Parameters
     ----------
-    U, B : ndarray, shape (4, 3)
-        The cover's and the found book's world corners, each in cyclic order (metres).
+    U : ndarray, shape (4, 3)
+        The cover's world corners in cyclic order (metres), a rectangle parallel to the desk.
+    B : ndarray, shape (4, 3)
+        The found book's world corners (metres), in any order.
     desk_plane : ndarray, shape (4,)
         ``[nx, ny, nz, d]`` (world, normal up).
     touch, step : float
         Metres.
+
+    Returns
+    -------
+    bool
     """
     h = geometry.plane_distance(desk_plane, np.vstack([U, B]))
     if abs(h[:4].mean() - h[4:].mean()) > step:
@@ -548,13 +554,8 @@ def piece_of(U: NDArray[np.float64], B: NDArray[np.float64], desk_plane: NDArray
     B = B - np.outer((B - c) @ up, up)  # onto the cover's plane
     for p in B:
         near = np.inf
-        for k in range(4):
+        for k in range(4):  # its distance to each side (a segment)
             a, b = U[k], U[(k + 1) % 4]
-            inward = _unit(np.cross(up, b - a))
-            if inward @ (c - a) < 0:
-                inward = -inward
-            if (p - a) @ inward < -touch:  # outside the cover beyond this side
-                return False
             t = np.clip((p - a) @ (b - a) / max(float((b - a) @ (b - a)), 1e-12), 0.0, 1.0)
             near = min(near, float(np.linalg.norm(p - (a + t * (b - a)))))
         if near > touch:
