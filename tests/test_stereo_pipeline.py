@@ -408,6 +408,20 @@ def test_settings_by_name_reach_nested_fields_and_name_bad_ones():
             with_settings(DetectConfig(), [bad])
 
 
+def _found_whole(rig, r, gray_l, gray_r, grad_r):
+    """Per book of rendering ``r`` whole in both images that :func:`find_in_other_view`
+    finds in the right image from its left quad, with every side showing: its world corners
+    (4, 3), its right quad (4, 2) and the call's first four arguments."""
+    for b in r.truth["books"]:
+        if min(b["visible_left"], b["visible_right"]) < 0.99:
+            continue
+        P = np.array(b["corners"])
+        src, dst = _ideal(rig, P, rig.Q_L), _ideal(rig, P, rig.Q_R)
+        args = (src, rig.Q_L, rig.Q_R, r.truth["desk_plane"])
+        if find_in_other_view(*args, grad_r, 10.0, gray_from=gray_l, gray_to=gray_r) is not None:
+            yield P, dst, args
+
+
 def test_a_cover_is_found_in_the_other_image_with_one_side_along_the_epipolar_lines_unseen(scene):
     # a far side of the desk's brightness shows no step in either image: the sides across
     # the epipolar lines still place the cover; without one of those, no cover (unless the
@@ -418,14 +432,7 @@ def test_a_cover_is_found_in_the_other_image_with_one_side_along_the_epipolar_li
     gray_r, grad_r = _ideal_grad(rig, r.right, "right")
     checked = {"along": 0, "across": 0}
     excused: list[bool] = []
-    for b in r.truth["books"]:
-        if min(b["visible_left"], b["visible_right"]) < 0.99:
-            continue
-        P = np.array(b["corners"])
-        src, dst = _ideal(rig, P, rig.Q_L), _ideal(rig, P, rig.Q_R)
-        args = (src, rig.Q_L, rig.Q_R, r.truth["desk_plane"])
-        if find_in_other_view(*args, grad_r, 10.0, gray_from=gray_l, gray_to=gray_r) is None:
-            continue
+    for P, dst, args in _found_whole(rig, r, gray_l, gray_r, grad_r):
         for s in range(4):
             a, c = dst[s], dst[(s + 1) % 4]
             slope = abs(c[1] - a[1]) / np.linalg.norm(c - a)  # epipolar lines: about horizontal
@@ -463,14 +470,7 @@ def test_with_a_side_excused_one_side_along_the_epipolar_lines_may_still_fall_sh
     gray_l, _ = _ideal_grad(rig, r.left, "left")
     gray_r, grad_r = _ideal_grad(rig, r.right, "right")
     placed: list[bool] = []
-    for b in r.truth["books"]:
-        if min(b["visible_left"], b["visible_right"]) < 0.99:
-            continue
-        P = np.array(b["corners"])
-        src, dst = _ideal(rig, P, rig.Q_L), _ideal(rig, P, rig.Q_R)
-        args = (src, rig.Q_L, rig.Q_R, r.truth["desk_plane"])
-        if find_in_other_view(*args, grad_r, 10.0, gray_from=gray_l, gray_to=gray_r) is None:
-            continue
+    for P, dst, args in _found_whole(rig, r, gray_l, gray_r, grad_r):
         sine = _sines(rig, P, np.asarray(r.truth["desk_plane"], dtype=np.float64))
         along = [s for s in range(4) if sine[s] < 0.3]
         across = [s for s in range(4) if sine[s] > 0.8]

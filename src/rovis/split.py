@@ -53,7 +53,7 @@ from rovis import geometry
 from rovis.extent import _edge_height, _unit
 from rovis.segment.edges import Gradients
 from rovis.segment.lines import intersect, refine_segment
-from rovis.stereo import flat_rectangle
+from rovis.stereo import _point_segment_distance, flat_rectangle
 from rovis.trim import row_medians
 
 
@@ -552,15 +552,9 @@ def piece_of(U: NDArray[np.float64], B: NDArray[np.float64], desk_plane: NDArray
     up = _unit(np.asarray(desk_plane[:3], np.float64))
     c = U.mean(axis=0)
     B = B - np.outer((B - c) @ up, up)  # onto the cover's plane
-    for p in B:
-        near = np.inf
-        for k in range(4):  # its distance to each side (a segment)
-            a, b = U[k], U[(k + 1) % 4]
-            t = np.clip((p - a) @ (b - a) / max(float((b - a) @ (b - a)), 1e-12), 0.0, 1.0)
-            near = min(near, float(np.linalg.norm(p - (a + t * (b - a)))))
-        if near > touch:
-            return False
-    return True
+    # each corner's distance to each of U's sides (segments), (4 corners, 4 sides)
+    d = _point_segment_distance(B[:, None], U[None], np.roll(U, -1, axis=0)[None])
+    return bool(np.all(d.min(axis=1) <= touch))
 
 
 def _off_line(p: NDArray[np.float64], a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
