@@ -18,7 +18,15 @@ what became of it:
   other);
 - ``neither``: no quad within 25 px in either image (lost in segmentation).
 
+With ``--pools``, each lost book is also placed by the candidates stereo chooses among
+(every quad of both images' :attr:`rovis.segment.Segmentation.pool`, ``open_pool``,
+``late_pool`` and ``small_pool``, from the images' segmentations run again as the detector
+runs them): ``pools: both`` (a candidate with every corner within 8 px of the cover in each
+image; ``, under a book``: one of them lies under a book found in the end, by more than
+30 % of the smaller quad in the left image), ``pools: one image`` or ``pools: neither``.
+
     python scripts/stereo_losses.py build/results/table1 --n 40
+    python scripts/stereo_losses.py build/rt1 --pools
 """
 
 from __future__ import annotations
@@ -33,9 +41,13 @@ from rovis import geometry
 from rovis.calib import load_calibration
 from rovis.evaluate import list_scenes, load_scene, match_books
 from rovis.pipeline import DetectConfig, Detector, with_settings
-from rovis.segment.quads import order_corners
+from rovis.results import FrameResult
+from rovis.segment import CascadeController
+from rovis.segment.methods import segment
+from rovis.segment.quads import order_corners, quad_overlap
 
 EXACT_PX, NEAR_PX = 3.0, 25.0  # px
+POOL_PX = 8.0  # px: a candidate of the pools this near the cover at every corner
 
 
 def corner_error(quads: np.ndarray, truth: np.ndarray) -> np.ndarray:
@@ -68,26 +80,65 @@ def fate(result, rig, book: dict, found: bool) -> str:  # type: ignore[no-untype
     return "lost: neither"
 
 
+def pool_fate(detector: Detector, left: np.ndarray, right: np.ndarray,
+              result: FrameResult, books: list[dict]) -> list[str]:
+    """Where each of ``books`` (truth dicts) stands in both images' candidate pools, one
+    line of ``--pools``' table each (``result``: the frame's detection, for "under a
+    book")."""
+    frame = detector._prepare(left, right)  # the detector's own undistortion and ROI
+    quads = {}
+    for cam in ("left", "right"):
+        seg = segment(frame.ideal[cam], frame.grads[cam], detector.cfg.method,
+                      controller=CascadeController(detector.cfg.segment, warm_start=False),
+                      cfg=detector.cfg.segment)
+        quads[cam] = np.concatenate([q.corners.reshape(-1, 4, 2) for q in (
+            seg.pool, seg.open_pool, seg.late_pool, seg.small_pool)])
+    Q = {"left": frame.rig.Q_L, "right": frame.rig.Q_R}
+    found = [geometry.project(Q["left"], np.asarray(o.corners_world)) for o in result.objects]
+    out = []
+    for book in books:
+        P = np.asarray(book["corners"], dtype=np.float64)
+        near = {cam: corner_error(quads[cam], order_corners(geometry.project(Q[cam], P)))
+                <= POOL_PX for cam in Q}
+        if near["left"].any() and near["right"].any():
+            under = any(quad_overlap(q, f) > 0.3 for q in quads["left"][near["left"]]
+                        for f in found)
+            out.append("pools: both" + (", under a book" if under else ""))
+        elif near["left"].any() or near["right"].any():
+            out.append("pools: one image")
+        else:
+            out.append("pools: neither")
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dataset", help="a folder written by rovis synth")
     ap.add_argument("--n", type=int, default=None, help="only the first N scenes")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="a DetectConfig setting, as rovis eval --set")
+    ap.add_argument("--pools", action="store_true",
+                    help="also place each lost book by the candidate pools (slower)")
     args = ap.parse_args()
     scenes = list_scenes(args.dataset)[:args.n]
     rig = load_calibration(f"{args.dataset}/calib.yaml")
     detector = Detector(rig, with_settings(DetectConfig(), args.set))
     fates: Counter[str] = Counter()
+    pools: Counter[str] = Counter()
     for k, scene in enumerate(scenes):
         doc, _, left, right = load_scene(scene)
         detector.reset()  # each scene on its own, as rovis eval
         result = detector.detect(left, right)
         matched = {t for t, _ in match_books([b["center"] for b in doc["books"]],
                                              [o.pose.center for o in result.objects])}
+        lost = []
         for k_book, book in enumerate(doc["books"]):
             if min(book["visible_left"], book["visible_right"]) >= 0.9:
                 fates[fate(result, rig, book, k_book in matched)] += 1
+                if k_book not in matched:
+                    lost.append(book)
+        if args.pools and lost:
+            pools.update(pool_fate(detector, left, right, result, lost))
         print(f"\r{k + 1}/{len(scenes)} scenes", end="", flush=True)
     total = sum(fates.values())
     print(f"\n\n{total} books >= 90 % visible in both images, {len(scenes)} scenes of "
@@ -95,7 +146,12 @@ def main() -> None:
     print("| fate | books | share |\n|---|---|---|")
     for name, n in sorted(fates.items(), key=lambda kv: (kv[0] != "found", -kv[1])):
         print(f"| {name} | {n} | {100 * n / total:.0f}% |")
-    print("\n" + json.dumps(dict(fates)))
+    if args.pools:
+        print(f"\n{sum(pools.values())} lost books by their candidates ({POOL_PX:g} px)\n")
+        print("| candidates | books |\n|---|---|")
+        for name, n in pools.most_common():
+            print(f"| {name} | {n} |")
+    print("\n" + json.dumps(dict(fates) | ({"pools": dict(pools)} if args.pools else {})))
 
 
 if __name__ == "__main__":

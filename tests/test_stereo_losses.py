@@ -1,0 +1,42 @@
+"""scripts/stereo_losses.py --pools: a lost book placed by the candidate pools."""
+
+from __future__ import annotations
+
+import importlib.util
+from dataclasses import replace
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+from rovis.pipeline import Detector
+from rovis.synth import render, sample_scene
+from rovis.synth.scene import Book
+from rovis.synth.textures import CoverSpec
+
+_spec = importlib.util.spec_from_file_location(
+    "stereo_losses", Path(__file__).parents[1] / "scripts" / "stereo_losses.py")
+assert _spec is not None and _spec.loader is not None
+stereo_losses = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(stereo_losses)
+
+
+def test_a_book_the_pools_hold_and_one_they_do_not_are_told_apart():
+    # one plain book alone on a clean desk: both images' pools hold its cover; a "book"
+    # 10 cm beside it on the bare desk is in neither
+    sc = sample_scene(5, lux=500.0, n_books=0)
+    b = Book(center=(0.42, 0.30, 0.03), yaw_deg=25.0, size=(0.22, 0.15, 0.03),
+             cover=CoverSpec(kind="plain", albedo=0.15, seed=2))
+    sc = replace(sc, books=(b,), papers=(), mugs=(), pens=(), cables=())
+    r = render(sc, 5)
+    book = r.truth["books"][0]
+    beside = dict(book, corners=(np.asarray(book["corners"]) + [0.0, 0.25, 0.0]).tolist())
+    detector = Detector(sc.rig)
+    nothing = SimpleNamespace(objects=[])
+    assert stereo_losses.pool_fate(detector, r.left, r.right, nothing, [book, beside]) == [
+        "pools: both", "pools: neither"]
+    # the book found, lying over its own candidates
+    found = detector.detect(r.left, r.right)
+    assert len(found.objects) == 1
+    assert stereo_losses.pool_fate(detector, r.left, r.right, found, [book]) == [
+        "pools: both, under a book"]
