@@ -23,7 +23,7 @@ _spec.loader.exec_module(stereo_losses)
 
 def test_a_book_the_pools_hold_and_one_they_do_not_are_told_apart():
     # one plain book alone on a clean desk: both images' pools hold its cover; a "book"
-    # 10 cm beside it on the bare desk is in neither
+    # 25 cm beside it on the bare desk is in neither
     sc = sample_scene(5, lux=500.0, n_books=0)
     b = Book(center=(0.42, 0.30, 0.03), yaw_deg=25.0, size=(0.22, 0.15, 0.03),
              cover=CoverSpec(kind="plain", albedo=0.15, seed=2))
