@@ -13,7 +13,7 @@ from rovis import geometry
 from rovis.pipeline import DetectConfig, Detector, Pair, with_settings
 from rovis.segment import SegmentConfig, gradients
 from rovis.segment.edges import CANNY_LOW_RATIO
-from rovis.split import (SplitConfig, _step_along, join_halves, map_step, piece_of,
+from rovis.split import (SplitConfig, _step_along, beside, join_halves, map_step, piece_of,
                          seam_profile, split_union, split_union_heights)
 from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book
@@ -423,6 +423,19 @@ def test_a_part_of_a_cover_spanning_it_is_a_piece_of_it():
     assert piece_of(cover, B + [0.0, 0.0, 0.0025], DESK, touch, step)  # within join_step
     # ...its corners laid on the cover's plane: 2.5 mm higher, still on the outline
     assert piece_of(cover, B + [0.0, 0.0, 0.0025], DESK, 0.002, step)
+
+
+def test_the_other_part_of_a_cover_lies_beside_the_part_found():
+    cover, A, B = _halves()
+    touch, step = 0.02, 0.003
+    assert beside(B, A, DESK, touch, step) and beside(A, B, DESK, touch, step)
+    u = (A[1] - A[0]) / np.linalg.norm(A[1] - A[0])  # along the cover
+    assert beside(B + 0.015 * u, A, DESK, touch, step)  # across a 15 mm band
+    assert not beside(B + 0.03 * u, A, DESK, touch, step)  # 3 cm away
+    assert not beside(B + [0.0, 0.0, 0.005], A, DESK, touch, step)  # 5 mm higher
+    # a book touching the part at one corner only
+    v = (A[3] - A[0]) / np.linalg.norm(A[3] - A[0])
+    assert not beside(B + 0.14 * v, A, DESK, touch, step)
 
 
 def test_a_neighbour_a_side_grew_over_is_no_piece_of_the_cover():

@@ -46,7 +46,7 @@ from rovis.segment.methods import METHODS, segment
 from rovis.segment.boundary import (Fit, refine_quad, refine_quad_both, refine_quad_fits,
                                     side_evidence)
 from rovis.segment.quads import Quads, _shoelace, order_corners, quad_overlap
-from rovis.split import (Split, SplitConfig, join_halves, map_step, piece_of,
+from rovis.split import (Split, SplitConfig, beside, join_halves, map_step, piece_of,
                          split_union_heights)
 from rovis.track import TrackConfig, follow
 from rovis.trim import (TrimConfig, cut_cover, grow_run, height_profile, lateral_grow, map_height,
@@ -583,6 +583,7 @@ class Detector:
             found = self._joined(rig, found, desk_plane, texture)
             lap("join")
         # last, since the extent step may grow a piece of a cover to the whole cover
+        dropped_early = len(dropped)
         small_open = sum(pair.small_open for pair, _ in found)
         found, small = self._without_small(found)
         if small or narrow:
@@ -608,6 +609,13 @@ class Detector:
                 and desk_plane is not None:
             found = self._cut_by_height(rig, found, desk_plane, texture, read, grads,
                                         self._edge_strength(segs))
+        freed = [quads for why, quads, _ in dropped[dropped_early:]
+                 if why in ("too small", "overlaps")]
+        if freed and self.cfg.stereo.pool and self.cfg.stereo.pool_freed \
+                and desk_plane is not None:
+            # beyond the paper: the candidates under a cover just dropped, free again
+            found += self._over_freed(rig, segs, grads, found, freed, desk_plane, texture,
+                                      ideal, read, refined)
         lap("overlaps")
         info = {cam: SegmentationInfo(T_H=segs[cam].T_H, T_HG=segs[cam].T_HG, y=segs[cam].y,
                                       iterations=segs[cam].iterations, n_quads=len(segs[cam]))
@@ -2648,6 +2656,36 @@ class Detector:
         if fitted is None or min(fitted.pose.size[:2]) < self.cfg.min_cover_side:
             return None
         return trial, fitted
+
+    def _over_freed(self, rig: StereoRig, segs: dict[str, Segmentation],
+                    grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
+                    freed: list[NDArray[np.float64]], desk_plane: NDArray[np.float64],
+                    texture: dict[str, NDArray[np.float32]] | None,
+                    ideal: dict[str, NDArray[np.uint8]],
+                    read: list[tuple[HeightMap, NDArray[np.float64]]],
+                    refined: Refined) -> list[tuple[Pair, BookDetection]]:
+        """Books of the candidate pool (:meth:`_from_pool`'s first pass) over the covers
+        ``freed`` (left quads (4, 2)) that were dropped at the end: found before that pass,
+        such a cover kept the candidates under it out of it (a piece of a cover cut at a
+        band, dropped as narrower than a book, over the whole cover's pairs). Each new book
+        lies over one by half or more of the smaller, goes through the extent step and must
+        then be no narrower than a book (:meth:`_without_small`), lie over no found book
+        by more than ``stereo.freed_overlap`` of the smaller quad in either image, and not
+        beside one as the other part of its cover (:func:`rovis.split.beside`, within
+        ``stereo.freed_touch`` and ``split.join_step``)."""
+        more = [(pair, book) for pair, book
+                in self._from_pool(rig, segs, grads, found, desk_plane, texture, refined)
+                if any(quad_overlap(pair.left, q) > 0.5 for q in freed)]
+        if not more:
+            return []
+        more = self._fit_extents(rig, segs, grads, more, desk_plane, texture, ideal, read)
+        # a piece of a found cover (its print's other part, at its height, with two
+        # corners on its outline) is no new book
+        step, touch = self.cfg.split.join_step, self.cfg.stereo.freed_touch
+        return [(pair, book) for pair, book in self._without_small(more)[0]
+                if not _over_any_of(pair, found, self.cfg.stereo.freed_overlap)
+                and not any(beside(book.corners_world, b.corners_world, desk_plane, touch, step)
+                            for _, b in found)]
 
     def _without_small(self, found: list[tuple[Pair, BookDetection]], *,
                        small_open_only: bool = False,

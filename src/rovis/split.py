@@ -557,6 +557,21 @@ def piece_of(U: NDArray[np.float64], B: NDArray[np.float64], desk_plane: NDArray
     return bool(np.all(d.min(axis=1) <= touch))
 
 
+def beside(B: NDArray[np.float64], F: NDArray[np.float64], desk_plane: NDArray[np.float64],
+           touch: float, step: float) -> bool:
+    """Whether book ``B`` (4, 3) lies beside found book ``F`` (4, 3) as the other part of
+    its cover: at its height (means within ``step``) with two corners or more, laid on
+    ``F``'s plane, within ``touch`` of ``F``'s outline (metres)."""
+    h = geometry.plane_distance(desk_plane, np.vstack([F, B]))
+    if abs(h[:4].mean() - h[4:].mean()) > step:
+        return False
+    up = _unit(np.asarray(desk_plane[:3], np.float64))
+    c = F.mean(axis=0)
+    B = B - np.outer((B - c) @ up, up)
+    d = _point_segment_distance(B[:, None], F[None], np.roll(F, -1, axis=0)[None])
+    return int(np.count_nonzero(d.min(axis=1) <= touch)) >= 2
+
+
 def _off_line(p: NDArray[np.float64], a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
     """The distance of point ``p`` from the line through ``a`` and ``b`` (3-D)."""
     d = _unit(b - a)

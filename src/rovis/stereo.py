@@ -129,6 +129,15 @@ class StereoConfig:
     # after it (a pool pair that was two touching books, cut back to one), the pool is
     # looked at again: the other book's pair had given way to the union
     pool_again: bool = True
+    # A cover dropped at the end (narrower than a book, or over one both segmentations
+    # found) was found before the pool's pass and kept the candidates under it out of it
+    # (a piece of a cover cut at a band of its print): the pool looked at again there. A
+    # book it gives must lie over no found book by more than freed_overlap of the smaller
+    # quad in either image, nor beside one at its height with two corners within
+    # freed_touch (metres) of its outline: the other part of that book's cover
+    pool_freed: bool = True
+    freed_overlap: float = 0.1
+    freed_touch: float = 0.02
     # After the height maps, a pair with a quad among the other T_H's candidates
     # (Segmentation.late_pool):
     # the rectangle fitted to both images' corners must reproject within this mean
