@@ -546,15 +546,8 @@ def piece_of(U: NDArray[np.float64], B: NDArray[np.float64], desk_plane: NDArray
     -------
     bool
     """
-    h = geometry.plane_distance(desk_plane, np.vstack([U, B]))
-    if abs(h[:4].mean() - h[4:].mean()) > step:
-        return False
-    up = _unit(np.asarray(desk_plane[:3], np.float64))
-    c = U.mean(axis=0)
-    B = B - np.outer((B - c) @ up, up)  # onto the cover's plane
-    # each corner's distance to each of U's sides (segments), (4 corners, 4 sides)
-    d = _point_segment_distance(B[:, None], U[None], np.roll(U, -1, axis=0)[None])
-    return bool(np.all(d.min(axis=1) <= touch))
+    d = _to_outline(U, B, desk_plane, step)
+    return d is not None and bool(np.all(d <= touch))
 
 
 def beside(B: NDArray[np.float64], F: NDArray[np.float64], desk_plane: NDArray[np.float64],
@@ -562,14 +555,23 @@ def beside(B: NDArray[np.float64], F: NDArray[np.float64], desk_plane: NDArray[n
     """Whether book ``B`` (4, 3) lies beside found book ``F`` (4, 3) as the other part of
     its cover: at its height (means within ``step``) with two corners or more, laid on
     ``F``'s plane, within ``touch`` of ``F``'s outline (metres)."""
-    h = geometry.plane_distance(desk_plane, np.vstack([F, B]))
+    d = _to_outline(F, B, desk_plane, step)
+    return d is not None and int(np.count_nonzero(d <= touch)) >= 2
+
+
+def _to_outline(U: NDArray[np.float64], B: NDArray[np.float64], desk_plane: NDArray[np.float64],
+                step: float) -> NDArray[np.float64] | None:
+    """Each corner of ``B`` (4, 3), laid on ``U``'s plane, its distance (4,) to ``U``'s
+    outline (metres); None where their mean heights differ by more than ``step``."""
+    h = geometry.plane_distance(desk_plane, np.vstack([U, B]))
     if abs(h[:4].mean() - h[4:].mean()) > step:
-        return False
+        return None
     up = _unit(np.asarray(desk_plane[:3], np.float64))
-    c = F.mean(axis=0)
-    B = B - np.outer((B - c) @ up, up)
-    d = _point_segment_distance(B[:, None], F[None], np.roll(F, -1, axis=0)[None])
-    return int(np.count_nonzero(d.min(axis=1) <= touch)) >= 2
+    c = U.mean(axis=0)
+    B = B - np.outer((B - c) @ up, up)  # onto the cover's plane
+    # each corner's distance to each of U's sides (segments), (4 corners, 4 sides)
+    d = _point_segment_distance(B[:, None], U[None], np.roll(U, -1, axis=0)[None])
+    return d.min(axis=1)
 
 
 def _off_line(p: NDArray[np.float64], a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
