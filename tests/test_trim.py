@@ -62,6 +62,17 @@ def test_a_short_low_fringe_is_not_cut():
     assert trim_side(_profile((thin, 30), (thin - 0.005, 12)), thin) is None
 
 
+def test_the_low_run_must_be_seven_strips():
+    # the smooth map's windows read lower a few strips into a cover at its edge: build/t1d
+    # scenes 4 and 50 read 6 strips (30 mm) lower at a sound cover's end
+    assert trim_side(_profile((H, 30), (0.0, 6)), H) is None
+    end, cut, _ = trim_side(_profile((H, 30), (0.0, 7)), H)
+    assert end == 1 and cut == pytest.approx(0.035)
+    # in the profile's own strip width (a 4.8 mm strip: 7 are 33.6 mm)
+    end, cut, _ = trim_side(_profile((H, 30), (0.0, 7)), H, strip=0.0048)
+    assert end == 1 and cut == pytest.approx(0.0336)
+
+
 def test_too_little_cover_left_is_not_cut():
     assert trim_side(_profile((H, 10), (0.0, 30)), H) is None
 

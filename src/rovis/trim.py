@@ -119,7 +119,7 @@ class TrimConfig:
     tolerance: float = 0.006
     tolerance_ratio: float = 0.25
     max_gap: float = 0.015
-    min_cut: float = 0.045
+    min_cut: float = 0.033  # 7 strips: 6 (30 mm) cut sound covers short (docs/stereo.md)
     min_other: float = 0.6
     min_keep: float = 0.07
     snap_reach: float = 0.01
