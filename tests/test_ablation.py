@@ -2,20 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from dataclasses import asdict
-from pathlib import Path
 
 import pytest
 
 from rovis.pipeline import DetectConfig, with_settings
 
-_spec = importlib.util.spec_from_file_location(
-    "ablation", Path(__file__).parents[1] / "scripts" / "ablation.py")
-assert _spec is not None and _spec.loader is not None
-ablation = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(ablation)
+from script_module import load_script
+
+ablation = load_script("ablation")
 
 
 @pytest.mark.parametrize("what,settings", ablation.STEPS[1:])

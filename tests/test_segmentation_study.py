@@ -2,18 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import pytest
 
 from rovis.segment import SegmentConfig
 
-_spec = importlib.util.spec_from_file_location(
-    "segmentation_study", Path(__file__).parents[1] / "scripts" / "segmentation_study.py")
-assert _spec is not None and _spec.loader is not None
-study = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(study)
+from script_module import load_script
+
+study = load_script("segmentation_study")
 
 
 def test_settings_reach_the_segment_config():

@@ -2,16 +2,11 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 
-_spec = importlib.util.spec_from_file_location(
-    "stereo_errors", Path(__file__).parents[1] / "scripts" / "stereo_errors.py")
-assert _spec is not None and _spec.loader is not None
-stereo_errors = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(stereo_errors)
+from script_module import load_script
+
+stereo_errors = load_script("stereo_errors")
 
 
 def _cover(x0, x1, y0, y1, yaw_deg=30.0):

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import importlib.util
 from dataclasses import replace
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -14,11 +12,9 @@ from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
 
-_spec = importlib.util.spec_from_file_location(
-    "stereo_losses", Path(__file__).parents[1] / "scripts" / "stereo_losses.py")
-assert _spec is not None and _spec.loader is not None
-stereo_losses = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(stereo_losses)
+from script_module import load_script
+
+stereo_losses = load_script("stereo_losses")
 
 
 def test_a_book_the_pools_hold_and_one_they_do_not_are_told_apart():
