@@ -64,6 +64,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("a transferred cover laid on its sides from end to end", ["stereo.pool_transfer_fit=false"]),
     ("a piece of a grown cover taken in", ["trim.grow_absorb=0"]),
     ("the pool looked at again under a cover dropped at the end", ["stereo.pool_freed=false"]),
+    ("the desk between books dropped", ["stereo.desk_unseen=0"]),
 ]
 
 

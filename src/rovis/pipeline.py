@@ -71,7 +71,7 @@ from rovis.undistort import IdealView
 # Detector._unskewed), or a rectangle inside a larger cover, in its plane (a print on it);
 # last, a cover over one both segmentations found (Detector._without_overlaps).
 DROP_REASONS = ("degenerate", "too long", "too small", "tilted", "height", "side on desk",
-                "texture height", "skewed", "printed", "overlaps")
+                "texture height", "skewed", "printed", "overlaps", "desk")
 # A frame's pool candidates refined (Detector._from_pool, read again by
 # Detector._from_pool_one_image): (camera, the candidate's corners as bytes: whichever pool
 # it is in) → corners with and without the inward search, (4, 2) each, and each side's fit
@@ -616,6 +616,13 @@ class Detector:
             # beyond the paper: the candidates under a cover just dropped, free again
             found += self._over_freed(rig, segs, grads, found, freed, desk_plane, texture,
                                       ideal, read, refined)
+        # beyond the paper: the desk between books, closed by plank seams and a book's edge
+        if self.cfg.stereo.desk_unseen > 0 and texture is not None and desk_plane is not None:
+            found, desk = self._without_desk(rig, segs, grads, found, desk_plane, texture)
+            if desk:
+                dropped += desk
+                warnings.append(f"{len(desk)} cover(s) with a side unseen whose inside matches "
+                                "on the desk dropped (the desk between books)")
         lap("overlaps")
         info = {cam: SegmentationInfo(T_H=segs[cam].T_H, T_HG=segs[cam].T_HG, y=segs[cam].y,
                                       iterations=segs[cam].iterations, n_quads=len(segs[cam]))
@@ -2482,6 +2489,44 @@ class Detector:
                     break
             (printed if on else kept).append((pair, book))
         return kept, printed
+
+    def _without_desk(self, rig: StereoRig, segs: dict[str, Segmentation],
+                      grads: dict[str, Gradients], found: list[tuple[Pair, BookDetection]],
+                      desk_plane: NDArray[np.float64], texture: dict[str, NDArray[np.float32]],
+                      ) -> tuple[list[tuple[Pair, BookDetection]],
+                                 list[tuple[str, NDArray[np.float64], NDArray[np.float64]]]]:
+        """The books, less each that is the desk between books; those as dropped pairs
+        (``"desk"``, left corners, right corners).
+
+        Two seams of the desk's planks and a book's edge make a quad whose fourth side
+        closes where the seams' edges end, or is completed in 3D; it pairs into a flat,
+        book-sized rectangle at the height stereo puts its sides at (the Table I renders'
+        scene 80: 236 × 153 mm, 72 mm up, over bare desk). Such a cover has a side that is
+        no step in either image (:func:`rovis.segment.boundary.side_evidence` under
+        ``stereo.desk_unseen`` along it, at half the Canny low threshold), and its inside
+        is the desk: the grain matches between the images (:func:`rovis.sweep.sweep_heights`,
+        ``sweep``'s inset and samples) at the desk's height with an NCC of at least
+        ``stereo.desk_ncc``, and no worse than at the cover's own. A book's print matches
+        best at its own height; a plain cover (no texture, or an NCC under ``desk_ncc``
+        at the desk) tells nothing and stays, as does every cover whose four sides show."""
+        cfg = self.cfg.stereo
+        strength = self._edge_strength(segs)
+        kept, desk = [], []
+        for pair, book in found:
+            unseen = np.ones(4, bool)
+            for cam in ("left", "right"):
+                unseen &= side_evidence(grads[cam], getattr(pair, cam),
+                                        0.5 * strength[cam]) < cfg.desk_unseen
+            if unseen.any():
+                sweep = sweep_heights(texture["left"], texture["right"], rig.Q_L, rig.Q_R,
+                                      pair.left, desk_plane, [0.0, float(book.pose.size[2])],
+                                      inset=self.cfg.sweep.inset,
+                                      max_samples=self.cfg.sweep.max_samples)
+                if sweep is not None and sweep.ncc[0] >= max(cfg.desk_ncc, sweep.ncc[1]):
+                    desk.append(("desk", pair.left, pair.right))
+                    continue
+            kept.append((pair, book))
+        return kept, desk
 
     def _without_overlaps(self, found: list[tuple[Pair, BookDetection]],
                           rig: StereoRig | None = None,

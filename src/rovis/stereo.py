@@ -138,6 +138,13 @@ class StereoConfig:
     pool_freed: bool = True
     freed_overlap: float = 0.1
     freed_touch: float = 0.02
+    # The desk between books: a found cover with a side neither image shows as a step
+    # (rovis.segment.boundary.side_evidence under desk_unseen along it, in both images)
+    # whose inside matches between the images at the desk's height (NCC at least desk_ncc)
+    # as well as at its own or better is dropped at the end (Detector._without_desk; 0:
+    # never). The desk's grain and the plank seams close such a quad with a book's edge.
+    desk_unseen: float = 0.3
+    desk_ncc: float = 0.3
     # After the height maps, a pair with a quad among the other T_H's candidates
     # (Segmentation.late_pool):
     # the rectangle fitted to both images' corners must reproject within this mean
