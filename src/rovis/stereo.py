@@ -141,8 +141,9 @@ class StereoConfig:
     # The desk between books: a found cover with a side neither image shows as a step
     # (rovis.segment.boundary.side_evidence under desk_unseen along it, in both images)
     # whose inside matches between the images at the desk's height (NCC at least desk_ncc)
-    # as well as at its own or better is dropped at the end (Detector._without_desk; 0:
-    # never). The desk's grain and the plank seams close such a quad with a book's edge.
+    # as well as at its own or better is dropped at the end, unless the height map found it
+    # (Detector._without_desk; 0: never). The desk's grain and the plank seams close such a
+    # quad with a book's edge.
     desk_unseen: float = 0.3
     desk_ncc: float = 0.3
     # After the height maps, a pair with a quad among the other T_H's candidates
