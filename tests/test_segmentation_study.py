@@ -1,7 +1,9 @@
-"""scripts/segmentation_study.py: its --set reaches the SegmentConfig each method runs with."""
+"""scripts/segmentation_study.py: its --set reaches the SegmentConfig each method runs with, and
+its scoring of one image's quads."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from rovis.segment import SegmentConfig
@@ -40,3 +42,32 @@ def test_the_command_line_refuses_a_wrong_setting_with_exit_code_2(capsys):
         study.main(["--n", "1", "--set", "bogus=1"])
     assert e.value.code == 2
     assert "no setting 'bogus'" in capsys.readouterr().err
+
+
+SQUARE = np.array([[100.0, 100.0], [300.0, 100.0], [300.0, 250.0], [100.0, 250.0]])
+
+
+def test_a_quad_within_3_px_in_any_cyclic_order_finds_the_cover():
+    quad = np.roll(SQUARE + [2.0, -1.0], 2, axis=0)  # another corner first, 2.2 px off
+    found, errors, false = study.score_image([(SQUARE, True)], [quad])
+    assert found == [True] and false == 0
+    assert np.allclose(errors, np.hypot(2.0, 1.0))
+
+
+def test_a_quad_with_one_corner_4_px_off_finds_nothing_and_is_false():
+    quad = SQUARE.copy()
+    quad[2] += [4.0, 0.0]
+    found, errors, false = study.score_image([(SQUARE, True)], [quad])
+    assert found == [False] and errors == [] and false == 1
+
+
+def test_a_cover_not_counted_for_recall_still_takes_its_quad():
+    other = SQUARE + [400.0, 0.0]
+    found, errors, false = study.score_image([(SQUARE, True), (other, False)],
+                                             [other + 0.5, SQUARE + 10.0])
+    # the counted cover is missed, the uncounted one found: its quad is no false one
+    assert found == [False] and len(errors) == 4 and false == 1
+
+
+def test_no_quads_find_nothing():
+    assert study.score_image([(SQUARE, True)], []) == ([False], [], 0)
