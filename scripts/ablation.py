@@ -64,7 +64,8 @@ STEPS: list[tuple[str, list[str]]] = [
     ("a transferred cover laid on its sides from end to end", ["stereo.pool_transfer_fit=false"]),
     ("a piece of a grown cover taken in", ["trim.grow_absorb=0"]),
     ("the pool looked at again under a cover dropped at the end", ["stereo.pool_freed=false"]),
-    ("the desk between books dropped", ["stereo.desk_unseen=0"]),
+    ("the desk between books dropped (a side unseen)", ["stereo.desk_unseen=0"]),
+    ("the desk inside four seen sides dropped", ["stereo.desk_seen_ncc=1.01"]),
 ]
 
 

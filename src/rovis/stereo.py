@@ -146,6 +146,15 @@ class StereoConfig:
     # quad with a book's edge.
     desk_unseen: float = 0.3
     desk_ncc: float = 0.3
+    # ...and one whose every side shows, where its inside matches between the images best at
+    # the desk (a sweep from the desk to 5 mm above the cover, every millimetre, peaking
+    # desk_peak metres above the desk or lower) with an NCC of at least desk_seen_ncc, and
+    # desk_margin more than at its own height (desk_seen_ncc above 1: never): a sheet's
+    # printed text block, or the desk closed on all four sides by books', sheets' and
+    # shadows' edges.
+    desk_peak: float = 0.002
+    desk_seen_ncc: float = 0.5
+    desk_margin: float = 0.05
     # After the height maps, a pair with a quad among the other T_H's candidates
     # (Segmentation.late_pool):
     # the rectangle fitted to both images' corners must reproject within this mean
