@@ -66,6 +66,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the pool looked at again under a cover dropped at the end", ["stereo.pool_freed=false"]),
     ("the desk between books dropped (a side unseen)", ["stereo.desk_unseen=0"]),
     ("the desk inside four seen sides dropped", ["stereo.desk_seen_ncc=1.01"]),
+    ("a printed frame grown with a side whose margin meets the desk", ["extent.frame_sides=4"]),
 ]
 
 

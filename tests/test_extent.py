@@ -1103,3 +1103,59 @@ def test_the_four_moves_must_agree(framed_book):
     assert extent.grow_frame(frame, Q, grads, gray, strength, desk) is not None
     tight = replace(ExtentConfig(), frame_agree=0.0002)
     assert extent.grow_frame(frame, Q, grads, gray, strength, desk, tight) is None
+
+
+def _desk_as_margin(P, Q, gray, sides, *, print_inside=True):
+    """Both ideal images with the desk beyond each of cover P's ``sides`` (2 cm of it)
+    painted in the tone of the cover's margin there: no step past the margin; with
+    ``print_inside``, two dark blocks printed in the cover's middle as well."""
+    inside = _inset(P, 0.003)  # in the margin, between the frame's line and the edge
+    painted = {cam: img.copy() for cam, img in gray.items()}
+    for s in sides:
+        out = _side_moved(P, s, 0.02)
+        beyond = np.array([P[s], P[(s + 1) % 4], out[(s + 1) % 4], out[s]])
+        for cam, img in painted.items():
+            at = geometry.project(Q[cam], inside[[s, (s + 1) % 4]]).mean(axis=0)
+            tone = int(gray[cam][int(round(at[1])), int(round(at[0]))])
+            cv2.fillConvexPoly(img, np.round(geometry.project(Q[cam], beyond)).astype(np.int32),
+                               tone)
+    if print_inside:
+        for a, b in ((0.30, 0.45), (0.55, 0.70)):  # bands across the cover's middle
+            block = np.array([P[0] + a * (P[1] - P[0]) + t * (P[3] - P[0]) for t in (0.3, 0.7)]
+                             + [P[0] + b * (P[1] - P[0]) + t * (P[3] - P[0]) for t in (0.7, 0.3)])
+            for cam, img in painted.items():
+                cv2.fillConvexPoly(img, np.round(geometry.project(Q[cam], block)).astype(np.int32),
+                                   40)
+    return painted
+
+
+def test_a_frame_whose_border_meets_the_desk_in_its_tone_grows_on_three_sides(framed_book):
+    # a side with no step past its margin moves as far as the other three
+    P, Q, grads, gray, desk = framed_book
+    frame = _inset(P, FRAME_MARGIN + 0.5 * FRAME_LINE)
+    strength = {cam: CANNY_LOW_RATIO * SegmentConfig().open_T_H for cam in Q}
+    one = _desk_as_margin(P, Q, gray, [0])
+    assert extent.grow_frame(frame, Q, grads, one, strength, desk,
+                             replace(ExtentConfig(), frame_sides=4)) is None
+    G = extent.grow_frame(frame, Q, grads, one, strength, desk)
+    assert G is not None
+    assert np.abs(_sizes(G) - _sizes(P)).max() < 0.003  # metres
+    # two such sides are too many for the default, enough with frame_sides=2
+    two = _desk_as_margin(P, Q, gray, [0, 1])
+    assert extent.grow_frame(frame, Q, grads, two, strength, desk) is None
+    G = extent.grow_frame(frame, Q, grads, two, strength, desk,
+                          replace(ExtentConfig(), frame_sides=2))
+    assert G is not None and np.abs(_sizes(G) - _sizes(P)).max() < 0.003
+
+
+def test_a_plain_inside_grows_on_four_sides_only(framed_book):
+    # no print inside the frame's line: a plain cover of the desk's tone reads the desk
+    # beyond its sides as a margin, so three sides are not enough there
+    P, Q, grads, gray, desk = framed_book
+    frame = _inset(P, FRAME_MARGIN + 0.5 * FRAME_LINE)
+    strength = {cam: CANNY_LOW_RATIO * SegmentConfig().open_T_H for cam in Q}
+    plain = _desk_as_margin(P, Q, gray, [0], print_inside=False)
+    assert extent.grow_frame(frame, Q, grads, plain, strength, desk) is None
+    G = extent.grow_frame(frame, Q, grads, plain, strength, desk,
+                          replace(ExtentConfig(), frame_print=0.0))
+    assert G is not None and np.abs(_sizes(G) - _sizes(P)).max() < 0.003

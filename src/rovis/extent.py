@@ -93,7 +93,11 @@ class ExtentConfig:
     frame_min: float = 0.003  # (a line's own other edge, blurred, is nearer)
     frame_max: float = 0.02
     frame_tone: float = 0.12
-    frame_agree: float = 0.006  # the four sides' moves differ at most so (an even margin)
+    frame_agree: float = 0.006  # the sides' moves differ at most so (an even margin)
+    # ...found for this many sides at least; a side whose margin shows no step beyond it (the
+    # cover's border of the desk's tone, the desk beyond) moves as far as their mean
+    frame_sides: int = 3
+    frame_print: float = 5.0  # ...where the inside shows print: grey levels (std, shading out)
     # A side of a book the height maps found not pulled inward over a strip they read at
     # the cover's height (the pipeline's Detector._fit_extents: a gap in a picture's edges,
     # not the cover's end), but for keep_print_margin next to the side's new place
@@ -190,9 +194,14 @@ def grow_frame(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     ``cfg.frame_max`` whose inner strip (1–2.5 mm) has the cover's tone inside the line
     (1.5–4 mm inside the side, or 4.5–7 mm where the quad lies on the line's outer edge;
     within ``cfg.frame_tone``) and whose outer strip (1–3.5 mm) does not, at the edge's
-    strongest within 3 mm; every side must find one, the four moves within
-    ``cfg.frame_agree`` of each other (the margin is even), and no moved side may lie on
-    an edge stereo puts near the desk (:func:`_on_desk`). Arguments as
+    strongest within 3 mm; ``cfg.frame_sides`` sides at least must find one, their moves
+    within ``cfg.frame_agree`` of each other (the margin is even), and no moved side may
+    lie on an edge stereo puts near the desk (:func:`_on_desk`). A side that finds none
+    moves as far as the others' mean: where the cover's border has the desk's tone, its
+    edge beyond the margin shows no step against the desk, while the sides with the page
+    block or a shadow beyond them show theirs (the Table I renders' scene 96: a 234 × 263
+    mm cover found as its frame, 28.6 and 25.3 mm short, one side with no step beyond its
+    margin; grown, its length's and width's errors 1.7 mm together). Arguments as
     :func:`fit_extent`; ``gray``: both ideal images.
     """
     up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
@@ -237,6 +246,21 @@ def grow_frame(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     def alike(x: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.bool_]:
         return np.abs(x - y) <= np.maximum(cfg.frame_tone * np.maximum(x, y), 4.0)
 
+    def printed() -> bool:
+        # the inside shows print: the grey of its middle 80 % (both images' mean, its
+        # shading, a plane, taken out) varies by cfg.frame_print grey levels or more
+        g = np.linspace(0.1, 0.9, 20)
+        pts = (P[0] + g[:, None, None] * (P[1] - P[0])
+               + g[None, :, None] * (P[3] - P[0])).reshape(-1, 3)
+        grey = np.zeros(len(pts))
+        for cam in Q:
+            h, w = gray[cam].shape
+            q = np.rint(geometry.project(Q[cam], pts)).astype(np.intp)
+            grey += gray[cam][np.clip(q[:, 1], 0, h - 1), np.clip(q[:, 0], 0, w - 1)] / len(Q)
+        uv = np.column_stack([np.repeat(g, len(g)), np.tile(g, len(g)), np.ones(len(pts))])
+        shading = uv @ np.linalg.lstsq(uv, grey, rcond=None)[0]
+        return float(np.std(grey - shading)) >= cfg.frame_print
+
     d = np.arange(cfg.frame_min, cfg.frame_max + 1e-9, cfg.step)
     moves = []
     for s in range(4):
@@ -251,13 +275,16 @@ def grow_frame(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
             fits &= ((alike(margin, strip(prof, -4 * mm, -1.5 * mm))
                       | alike(margin, strip(prof, -7 * mm, -4.5 * mm)))
                      & np.isfinite(outer) & ~alike(outer, margin))  # (NaN: alike nothing)
-        if not fits.any():
-            return None  # (the common case: a cover's own edge, the desk beyond)
-        is_edge, strength = _side_scores(_moved(P, s, d), s, (s + 1) % 4, Q, grads,
-                                         min_strength, cfg)
-        hit = np.flatnonzero(fits & is_edge)
-        if len(hit) == 0:
-            return None
+        hit = np.zeros(0, np.intp)
+        if fits.any():
+            is_edge, strength = _side_scores(_moved(P, s, d), s, (s + 1) % 4, Q, grads,
+                                             min_strength, cfg)
+            hit = np.flatnonzero(fits & is_edge)
+        if len(hit) == 0:  # (the common case: a cover's own edge, the desk beyond)
+            moves.append(None)
+            if sum(m is None for m in moves) > 4 - cfg.frame_sides:
+                return None
+            continue
         # the tones change over the blurred edge's width: the edge is where it is strongest,
         # within 3 mm on (while it stays an edge)
         k = end = int(hit[0])
@@ -265,9 +292,14 @@ def grow_frame(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
         while end + 1 < len(d) and is_edge[end + 1] and end + 1 - k <= reach:
             end += 1
         moves.append(_peak(d, strength, k, end, cfg.step))
-    if max(moves) - min(moves) > cfg.frame_agree:
+    found = [m for m in moves if m is not None]
+    if max(found) - min(found) > cfg.frame_agree:
         return None
+    if len(found) < 4 and not printed():
+        return None  # (a plain cover of the desk's tone: the desk beyond reads as a margin)
+    mean = float(np.mean(found))
     for s, m in enumerate(moves):
+        m = mean if m is None else m
         P = _moved(P, s, np.array([m]))[0]
     if cfg.height_check and any(_on_desk(P, s, Q, grads, up, drop, cfg) for s in range(4)):
         return None
