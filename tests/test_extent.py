@@ -1159,3 +1159,17 @@ def test_a_plain_inside_grows_on_four_sides_only(framed_book):
     G = extent.grow_frame(frame, Q, grads, plain, strength, desk,
                           replace(ExtentConfig(), frame_print=0.0))
     assert G is not None and np.abs(_sizes(G) - _sizes(P)).max() < 0.003
+
+
+@pytest.mark.parametrize("sides", [0, 5])
+def test_a_frame_count_out_of_range_grows_nothing_it_cannot_back(framed_book, sides):
+    # frame_sides 0 asks no side and 5 more than a cover has: neither may grow a frame with
+    # fewer sides found than asked (0: at least one), nor fail
+    P, Q, grads, gray, desk = framed_book
+    frame = _inset(P, FRAME_MARGIN + 0.5 * FRAME_LINE)
+    strength = {cam: CANNY_LOW_RATIO * SegmentConfig().open_T_H for cam in Q}
+    cfg = replace(ExtentConfig(), frame_sides=sides)
+    four = _desk_as_margin(P, Q, gray, [0, 1, 2, 3])  # no side finds its edge
+    assert extent.grow_frame(frame, Q, grads, four, strength, desk, cfg) is None
+    G = extent.grow_frame(frame, Q, grads, gray, strength, desk, cfg)
+    assert (G is None) == (sides == 5)

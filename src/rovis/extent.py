@@ -199,7 +199,7 @@ def grow_frame(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     lie on an edge stereo puts near the desk (:func:`_on_desk`). A side that finds none
     moves as far as the others' mean: where the cover's border has the desk's tone, its
     edge beyond the margin shows no step against the desk, while the sides with the page
-    block or a shadow beyond them show theirs (the Table I renders' scene 96: a 234 × 263
+    block or a shadow beyond them show theirs (the Table I renders' scene 96: a 263 × 234
     mm cover found as its frame, 28.6 and 25.3 mm short, one side with no step beyond its
     margin; grown, its length's and width's errors 1.7 mm together). Arguments as
     :func:`fit_extent`; ``gray``: both ideal images.
@@ -293,7 +293,7 @@ def grow_frame(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
             end += 1
         moves.append(_peak(d, strength, k, end, cfg.step))
     found = [m for m in moves if m is not None]
-    if max(found) - min(found) > cfg.frame_agree:
+    if len(found) < max(cfg.frame_sides, 1) or max(found) - min(found) > cfg.frame_agree:
         return None
     if len(found) < 4 and not printed():
         return None  # (a plain cover of the desk's tone: the desk beyond reads as a margin)
