@@ -120,6 +120,9 @@ def main(argv: Sequence[str] | None = None) -> None:
                          "quads.min_support=0.6 (repeatable; as rovis eval --set segment.NAME; "
                          "not quality_sign or refine_gamma)")
     args = ap.parse_args(argv)
+    unknown = [m for m in args.methods.split(",") if m not in METHODS]
+    if unknown:
+        ap.error(f"--methods: unknown {', '.join(unknown)} (choose from {', '.join(METHODS)})")
     methods = {m: METHODS[m] for m in args.methods.split(",")}
     try:
         configs = {m: segment_config(sign, args.refine_gamma, args.set)

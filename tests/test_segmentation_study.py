@@ -71,3 +71,10 @@ def test_a_cover_not_counted_for_recall_still_takes_its_quad():
 
 def test_no_quads_find_nothing():
     assert study.score_image([(SQUARE, True)], []) == ([False], [], 0)
+
+
+def test_an_unknown_method_is_refused_with_exit_code_2(capsys):
+    with pytest.raises(SystemExit) as e:
+        study.main(["--n", "1", "--methods", "closed+,bogus"])
+    assert e.value.code == 2
+    assert "unknown bogus" in capsys.readouterr().err

@@ -70,7 +70,8 @@ from rovis.undistort import IdealView
 # whose corners make no rectangle in 3D (with it, one with no corner near a right angle:
 # Detector._unskewed), or a rectangle inside a larger cover, in its plane (a print on it);
 # last, a cover over one both segmentations found (Detector._without_overlaps), and the
-# desk between books: a side unseen, its inside matching on the desk (Detector._without_desk).
+# desk between books: its inside matching on the desk, with a side unseen or, with every
+# side seen, best and clearly so (Detector._without_desk).
 DROP_REASONS = ("degenerate", "too long", "too small", "tilted", "height", "side on desk",
                 "texture height", "skewed", "printed", "overlaps", "desk")
 # A frame's pool candidates refined (Detector._from_pool, read again by
@@ -617,7 +618,8 @@ class Detector:
             # beyond the paper: the candidates under a cover just dropped, free again
             found += self._over_freed(rig, segs, grads, found, freed, desk_plane, texture,
                                       ideal, read, refined)
-        # beyond the paper: the desk between books, closed by plank seams and a book's edge
+        # beyond the paper: the desk between books, closed by plank seams and a book's edge,
+        # or by books', sheets' and shadows' edges on all four sides (a sheet's text too)
         if (self.cfg.stereo.desk_unseen > 0 or self.cfg.stereo.desk_seen_ncc <= 1) \
                 and texture is not None and desk_plane is not None:
             found, desk = self._without_desk(rig, segs, grads, found, desk_plane, texture)
@@ -2505,16 +2507,16 @@ class Detector:
         book-sized rectangle at the height stereo puts its sides at (the Table I renders'
         scene 80: 236 × 153 mm, 72 mm up, over bare desk). Such a cover has a side that is
         no step in either image (:func:`rovis.segment.boundary.side_evidence` under
-        ``stereo.desk_unseen`` along it, at half the Canny low threshold), and its inside
-        is the desk: the grain matches between the images (:func:`rovis.sweep.sweep_heights`,
+        ``stereo.desk_unseen`` along it, at half the Canny low threshold), and its inside is
+        the desk: the grain matches between the images (:func:`rovis.sweep.sweep_heights`,
         ``sweep``'s inset and samples) at the desk's height with an NCC of at least
         ``stereo.desk_ncc``, and no worse than at the cover's own. A book's print matches
-        best at its own height; a plain cover (no texture, or an NCC under ``desk_ncc``
-        at the desk) tells nothing and stays, as does every cover whose four sides show.
-        A book of the height map stays too: the maps read it standing out of the desk,
-        and a cover of the desk's grain matches no better at its own height than on the
-        desk (tests/test_track.py's scene: a desk-toned cover 13 mm up, found 17 mm off,
-        NCC 0.48 on the desk against 0.43 at its 14 mm).
+        best at its own height; a plain cover (no texture, or an NCC under ``desk_ncc`` at
+        the desk) tells nothing and stays, as does a cover whose four sides show unless its
+        inside peaks clearly on the desk (below). A book of the height map stays too: the
+        maps read it standing out of the desk, and a cover of the desk's grain matches no
+        better at its own height than on the desk (tests/test_track.py's scene: a desk-toned
+        cover 13 mm up, found 17 mm off, NCC 0.48 on the desk against 0.43 at its 14 mm).
 
         A quad of the desk may show all four sides too: the text block printed on a sheet of
         paper, or the desk between books closed by their edges, a sheet's and a shadow's
