@@ -67,6 +67,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the desk between books dropped (a side unseen)", ["stereo.desk_unseen=0"]),
     ("the desk inside four seen sides dropped", ["stereo.desk_seen_ncc=1.01"]),
     ("a printed frame grown with a side whose margin meets the desk", ["extent.frame_sides=4"]),
+    ("a facing side moved off its page block's foot (both images)", ["facing.feet=false"]),
 ]
 
 

@@ -795,6 +795,14 @@ class FacingConfig:
     image's side lies at the cover's height, is moved there. (Which blocks show is asked
     first where the tilted pair triangulates: a side far enough out reads as a cover low
     enough there for no block to show, which narrows the band in practice.)
+
+    ``feet`` turns on :func:`foot_side` (the pipeline's ``Detector._off_feet``): a facing
+    side both images took on its page block's foot, moved to the cover's edge above it,
+    where the block is ``foot_px`` pixels wide or more in one image, a side that does not
+    face the camera lies within ``foot_agree`` of the cover's height, the side's edge
+    (fitted within ``foot_fit_px`` of it) lies at ``foot_level`` of the cover's height
+    or lower by stereo, to within ``foot_sigma`` of that height, and the edge at the
+    moved side, where stereo places it, not lower than ``foot_cover`` of it.
     """
 
     enabled: bool = True
@@ -804,6 +812,13 @@ class FacingConfig:
     block_sides: bool = True
     block_px: float = 1.0
     block_share: tuple[float, float] = (0.3, 1.3)
+    feet: bool = True
+    foot_px: float = 4.0
+    foot_fit_px: float = 2.0
+    foot_level: float = 0.3
+    foot_sigma: float = 0.4
+    foot_cover: float = 0.5
+    foot_agree: float = 0.25
 
 
 def settle_facing_sides(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],
@@ -1481,3 +1496,94 @@ def lift_foot(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.f
         if sigma <= max_sigma and top + z < 0.5 * top:
             return None
     return out
+
+
+def foot_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
+              grads: dict[str, Gradients], desk_plane: NDArray[np.float64],
+              cfg: FacingConfig = FacingConfig()) -> float:
+    """How far (metres, inward) side ``s`` of cover ``P`` (4, 3) must move where both
+    images took it on the foot of its page block: 0 where they did not.
+
+    Beyond the paper. Below a side facing the camera the page block shows; where the
+    cover's edge above it is faint (a light cover on white pages), both images' sides may
+    take the block's foot instead, and no stereo test of the pair tells: on the cover's
+    plane the two lines meet, the cover lies flat at its height, only one side longer by
+    the block's depth in view (a 6 cm book at 45°: some 4 cm). A book is a cuboid: where
+    the side is the foot, the cover's edge lies straight above it. The side's ends are
+    back-projected onto the desk in each image, lifted by the cover's height ``h`` and
+    the move is the mean of the two images' inward offsets to that line. It is taken where
+
+    - the block it hides is ``cfg.foot_px`` pixels wide or more in one image (below that,
+      the foot and the cover's edge are one edge to the fits);
+    - a side of the cover that does not face the camera has its edge, by stereo, within
+      ``cfg.foot_agree`` of ``h`` (to within ``cfg.foot_sigma`` of ``h``): the cover lies
+      at ``h``;
+    - the side's edge, fitted in each image within ``cfg.foot_fit_px`` of it, lies by
+      stereo (:func:`_line_height`) at ``cfg.foot_level`` of ``h`` or lower, to within
+      ``cfg.foot_sigma`` of ``h``: nearer the desk than the cover;
+    - the edge at the moved side, where stereo places one as well, is not lower than
+      ``cfg.foot_cover`` of ``h`` (a shadow's edge on the desk beyond the foot: no cover
+      edge above it).
+
+    Parameters
+    ----------
+    P : ndarray, shape (4, 3)
+        Cover corners on a plane parallel to the desk (world, metres), in cyclic order.
+    s : int
+        The side, from corner ``s`` to ``s + 1``.
+    Q, grads, desk_plane
+        As :func:`fit_extent`.
+    cfg : FacingConfig
+
+    Returns
+    -------
+    float
+        Metres inward (0: the side stays).
+    """
+    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+    h = float(np.mean(geometry.plane_distance(desk_plane, P)))
+    if h <= 0 or not _facing(P, s, Q) or not _block_shows(P, s, Q, -h * up):
+        return 0.0
+    a, b = P[s], P[(s + 1) % 4]
+    inward = np.cross(up, _unit(b - a))
+    if inward @ (P.mean(axis=0) - 0.5 * (a + b)) < 0:
+        inward = -inward
+    moves, width = [], 0.0
+    for cam in ("left", "right"):
+        q = geometry.project(Q[cam], np.array([a, b]))
+        cover = on_plane(Q[cam], q, desk_plane, 0.0) + h * up  # the foot, lifted
+        moves.append(float(np.mean((cover - np.array([a, b])) @ inward)))
+        r = geometry.project(Q[cam], cover)
+        n = np.array([q[0, 1] - q[1, 1], q[1, 0] - q[0, 0]])
+        width = max(width, abs(float(n @ (r.mean(axis=0) - q.mean(axis=0))))
+                    / max(float(np.linalg.norm(n)), 1e-9))
+    move = float(np.mean(moves))
+    if width < cfg.foot_px or move <= 0:
+        return 0.0
+    # the cover's height, as a side with no block below it places its edge: a cover
+    # placed at another height lifts the foot by the wrong amount
+    if not any(sigma <= cfg.foot_sigma * h and abs(z) <= cfg.foot_agree * h
+               for z, sigma in (_edge_height(P, k, Q, grads, up) for k in range(4)
+                                if k != s and not _facing(P, k, Q))):
+        return 0.0
+
+    def level(corners: NDArray[np.float64]) -> tuple[float, float]:
+        # the side's edge above the desk by stereo, and its standard deviation (metres)
+        ends = corners[[s, (s + 1) % 4]]
+        fits = {}
+        for cam in ("left", "right"):
+            pa, pb = geometry.project(Q[cam], ends)
+            fit = refine_segment(grads[cam], pa, pb, half_width=cfg.foot_fit_px)
+            if fit is None:
+                return 0.0, np.inf
+            fits[cam] = fit
+        z, sigma = _line_height(fits, ends[0], ends[1], Q, up)
+        return h + z, sigma
+
+    z, sigma = level(P)
+    if not (sigma <= cfg.foot_sigma * h and z <= cfg.foot_level * h):
+        return 0.0
+    z, sigma = level(_moved(P, s, np.array([-move]))[0])
+    if sigma <= cfg.foot_sigma * h and z < cfg.foot_cover * h:
+        return 0.0
+    return move

@@ -32,8 +32,8 @@ from rovis import geometry, marker
 from rovis.calib import StereoRig
 from rovis.extent import (CompleteConfig, ExtentConfig, FacingConfig, SideHeightConfig,
                           _drop, _foot_is_edge, _grow_side, _moved, _on_desk, _side_scores, _unit,
-                          complete_open, fit_pair_extent, height_from_sides, lift_foot,
-                          settle_block_sides, settle_facing_sides, strong_share)
+                          complete_open, fit_pair_extent, foot_side, height_from_sides,
+                          lift_foot, settle_block_sides, settle_facing_sides, strong_share)
 from rovis.heightmap import (HeightMap, HeightMapConfig, Rectification, dense_height_map,
                              height_map, raised_covers, smooth_height_map, snap_sides,
                              sweeps_confirm)
@@ -563,6 +563,11 @@ class Detector:
         if self.cfg.trim.print_grow and texture is not None and desk_plane is not None:
             found = self._grown_by_print(rig, segs, grads, found, desk_plane, texture)
             lap("trim")
+        # beyond the paper: a side facing the camera that both images took on its page
+        # block's foot, moved to the cover's edge above it (after the steps that grow sides)
+        if self.cfg.facing.feet and desk_plane is not None:
+            found = self._off_feet(rig, grads, found, desk_plane, texture)
+            lap("feet")
         if self.cfg.heightmap.taken_px >= 0 and maps:
             # beyond the paper: two books of about one height side by side make one patch
             # in one slab of the maps, and one rectangle over both, which was turned down
@@ -1753,6 +1758,30 @@ class Detector:
                 out[i] = (new_pair, new_book)
                 gone |= taken
         return [found_k for k, found_k in enumerate(out) if k not in gone]
+
+    def _off_feet(self, rig: StereoRig, grads: dict[str, Gradients],
+                  found: list[tuple[Pair, BookDetection]], desk_plane: NDArray[np.float64],
+                  texture: dict[str, NDArray[np.float32]] | None,
+                  ) -> list[tuple[Pair, BookDetection]]:
+        """Each cover with its sides that both images took on the page block's foot moved
+        in to the cover's edge above it (:func:`rovis.extent.foot_side`), kept where it
+        passes the pose checks again."""
+        Q = {"left": rig.Q_L, "right": rig.Q_R}
+        out = []
+        for pair, book in found:
+            P, _ = _on_cover_plane(rig, pair, desk_plane)
+            moved = False
+            for s in range(4):
+                d = foot_side(P, s, Q, grads, desk_plane, self.cfg.facing)
+                if d > 0:
+                    P, moved = _moved(P, s, np.array([-d]))[0], True
+            if moved:
+                new_pair, new_book, _ = self._reconstruct_or_why(
+                    rig, _pair_at(rig, pair, P), desk_plane, texture)
+                if new_book is not None:
+                    pair, book = new_pair, new_book
+            out.append((pair, book))
+        return out
 
     def _pieces_of(self, out: list[tuple[Pair, BookDetection]], i: int,
                    grown: NDArray[np.float64], desk_plane: NDArray[np.float64],
