@@ -816,7 +816,7 @@ class FacingConfig:
     foot_px: float = 4.0
     foot_fit_px: float = 2.0
     foot_level: float = 0.3
-    foot_sigma: float = 0.4
+    foot_sigma: float = 0.6
     foot_cover: float = 0.5
     foot_agree: float = 0.25
 
