@@ -813,7 +813,7 @@ class FacingConfig:
     block_px: float = 1.0
     block_share: tuple[float, float] = (0.3, 1.3)
     feet: bool = True
-    foot_px: float = 4.0
+    foot_px: float = 3.0
     foot_fit_px: float = 2.0
     foot_level: float = 0.3
     foot_sigma: float = 0.6
