@@ -796,13 +796,15 @@ class FacingConfig:
     first where the tilted pair triangulates: a side far enough out reads as a cover low
     enough there for no block to show, which narrows the band in practice.)
 
-    ``feet`` turns on :func:`foot_side` (the pipeline's ``Detector._off_feet``): a facing
-    side both images took on its page block's foot, moved to the cover's edge above it,
-    where the block is ``foot_px`` pixels wide or more in one image, a side that does not
-    face the camera lies within ``foot_agree`` of the cover's height, the side's edge
-    (fitted within ``foot_fit_px`` of it) lies at ``foot_level`` of the cover's height
-    or lower by stereo, to within ``foot_sigma`` of that height, and the edge at the
-    moved side, where stereo places it, not lower than ``foot_cover`` of it.
+    ``feet`` turns on :func:`foot_side` (the pipeline's ``Detector._off_feet``; a switch
+    of its own, apart from ``enabled``): a facing side both images took on its page
+    block's foot, moved to the cover's edge above it, where the block is ``foot_px``
+    pixels wide or more in one image, a side that does not face the camera has its edge
+    within ``foot_agree`` of the cover's height h, the side's own edge (fitted within
+    ``foot_fit_px`` pixels of it) lies at ``foot_level`` of h or lower, and the edge at the
+    moved side, where stereo places it, no lower than ``foot_cover`` of h; every stereo
+    reading taken to within ``foot_sigma`` of h. ``foot_level``, ``foot_sigma``,
+    ``foot_cover`` and ``foot_agree`` are shares of h, not metres.
     """
 
     enabled: bool = True
@@ -1508,10 +1510,12 @@ def foot_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
     cover's edge above it is faint (a light cover on white pages), both images' sides may
     take the block's foot instead, and no stereo test of the pair tells: on the cover's
     plane the two lines meet, the cover lies flat at its height, only one side longer by
-    the block's depth in view (a 6 cm book at 45°: some 4 cm). A book is a cuboid: where
+    the block's depth in view (h times the cotangent of the camera's elevation: a 6 cm
+    book seen from 45° up, 6 cm). A book is a cuboid: where
     the side is the foot, the cover's edge lies straight above it. The side's ends are
     back-projected onto the desk in each image, lifted by the cover's height ``h`` and
-    the move is the mean of the two images' inward offsets to that line. It is taken where
+    the move is the mean of the two images' inward offsets to that line (across the
+    side; :func:`_moved` slides its corners along the sides beside it). It is taken where
 
     - the block it hides is ``cfg.foot_px`` pixels wide or more in one image (below that,
       the foot and the cover's edge are one edge to the fits);
@@ -1523,7 +1527,9 @@ def foot_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
       ``cfg.foot_sigma`` of ``h``: nearer the desk than the cover;
     - the edge at the moved side, where stereo places one as well, is not lower than
       ``cfg.foot_cover`` of ``h`` (a shadow's edge on the desk beyond the foot: no cover
-      edge above it).
+      edge above it);
+    - the move is less than half the sides beside it (a cover's page block, seen from
+      above, is never as deep as the cover).
 
     Parameters
     ----------
@@ -1542,8 +1548,8 @@ def foot_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
     """
     up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
     h = float(np.mean(geometry.plane_distance(desk_plane, P)))
-    if h <= 0 or not _facing(P, s, Q) or not _block_shows(P, s, Q, -h * up):
-        return 0.0
+    if not h > 0 or not _facing(P, s, Q) or not _block_shows(P, s, Q, -h * up):
+        return 0.0  # (not h > 0: NaN corners too)
     a, b = P[s], P[(s + 1) % 4]
     inward = np.cross(up, _unit(b - a))
     if inward @ (P.mean(axis=0) - 0.5 * (a + b)) < 0:
@@ -1558,7 +1564,9 @@ def foot_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
         width = max(width, abs(float(n @ (r.mean(axis=0) - q.mean(axis=0))))
                     / max(float(np.linalg.norm(n)), 1e-9))
     move = float(np.mean(moves))
-    if width < cfg.foot_px or move <= 0:
+    beside = 0.5 * (np.linalg.norm(P[s] - P[(s - 1) % 4])
+                    + np.linalg.norm(P[(s + 1) % 4] - P[(s + 2) % 4]))
+    if width < cfg.foot_px or not 0 < move < 0.5 * beside:
         return 0.0
     # the cover's height, as a side with no block below it places its edge: a cover
     # placed at another height lifts the foot by the wrong amount

@@ -1765,7 +1765,8 @@ class Detector:
                   ) -> list[tuple[Pair, BookDetection]]:
         """Each cover with its sides that both images took on the page block's foot moved
         in to the cover's edge above it (:func:`rovis.extent.foot_side`), kept where it
-        passes the pose checks again."""
+        passes the pose checks again and no side is shorter than ``min_cover_side``. The
+        height map's books too: the move rests on stereo, not on the maps."""
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         out = []
         for pair, book in found:
@@ -1778,7 +1779,8 @@ class Detector:
             if moved:
                 new_pair, new_book, _ = self._reconstruct_or_why(
                     rig, _pair_at(rig, pair, P), desk_plane, texture)
-                if new_book is not None:
+                if new_book is not None and min(new_book.pose.size[:2]) >= \
+                        self.cfg.min_cover_side:
                     pair, book = new_pair, new_book
             out.append((pair, book))
         return out
