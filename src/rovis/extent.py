@@ -1568,12 +1568,6 @@ def foot_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
                     + np.linalg.norm(P[(s + 1) % 4] - P[(s + 2) % 4]))
     if width < cfg.foot_px or not 0 < move < 0.5 * beside:
         return 0.0
-    # the cover's height, as a side with no block below it places its edge: a cover
-    # placed at another height lifts the foot by the wrong amount
-    if not any(sigma <= cfg.foot_sigma * h and abs(z) <= cfg.foot_agree * h
-               for z, sigma in (_edge_height(P, k, Q, grads, up) for k in range(4)
-                                if k != s and not _facing(P, k, Q))):
-        return 0.0
 
     def level(corners: NDArray[np.float64]) -> tuple[float, float]:
         # the side's edge above the desk by stereo, and its standard deviation (metres)
@@ -1593,5 +1587,12 @@ def foot_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
         return 0.0
     z, sigma = level(_moved(P, s, np.array([-move]))[0])
     if sigma <= cfg.foot_sigma * h and z < cfg.foot_cover * h:
+        return 0.0
+    # last (the dearest test, and most sides are refused above): the cover's height, as
+    # a side with no block below it places its edge; a cover placed at another height
+    # lifts the foot by the wrong amount
+    if not any(sigma <= cfg.foot_sigma * h and abs(z) <= cfg.foot_agree * h
+               for z, sigma in (_edge_height(P, k, Q, grads, up) for k in range(4)
+                                if k != s and not _facing(P, k, Q))):
         return 0.0
     return move
