@@ -817,7 +817,7 @@ class FacingConfig:
     feet: bool = True
     foot_px: float = 3.0
     foot_fit_px: float = 2.0
-    foot_level: float = 0.3
+    foot_level: float = 0.4
     foot_sigma: float = 0.6
     foot_cover: float = 0.5
     foot_agree: float = 0.25
