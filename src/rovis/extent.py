@@ -1511,11 +1511,11 @@ def foot_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
     take the block's foot instead, and no stereo test of the pair tells: on the cover's
     plane the two lines meet, the cover lies flat at its height, only one side longer by
     the block's depth in view (h times the cotangent of the camera's elevation: a 6 cm
-    book seen from 45° up, 6 cm). A book is a cuboid: where
-    the side is the foot, the cover's edge lies straight above it. The side's ends are
-    back-projected onto the desk in each image, lifted by the cover's height ``h`` and
-    the move is the mean of the two images' inward offsets to that line (across the
-    side; :func:`_moved` slides its corners along the sides beside it). It is taken where
+    book seen from 45° up, 6 cm). A book is a cuboid: where the side is the foot, the
+    cover's edge lies straight above it. The side's ends are back-projected onto the desk
+    in each image, lifted by the cover's height ``h``, and the move is the mean of the two
+    images' inward offsets to that line (across the side; :func:`_moved` slides its
+    corners along the sides beside it). It is taken where
 
     - the block it hides is ``cfg.foot_px`` pixels wide or more in one image (below that,
       the foot and the cover's edge are one edge to the fits);

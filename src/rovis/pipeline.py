@@ -163,8 +163,10 @@ class DetectConfig:
         settled on the page-block edge both images share, before the extent step
         (:func:`rovis.extent.settle_facing_sides`), and, in a tilted pair's flat refit,
         a side one image saw on its page block's foot moved to the cover's height
-        (``facing.block_sides``, :func:`rovis.extent.settle_block_sides`; beyond the
-        paper; need the desk plane). ``sweep``: each
+        (``facing.block_sides``, :func:`rovis.extent.settle_block_sides`), and, after
+        the steps that grow sides, a side both images took on its page block's foot, the
+        cover flat at its height, moved to the cover's edge above it (``facing.feet``,
+        :func:`rovis.extent.foot_side`; beyond the paper; need the desk plane). ``sweep``: each
         cover's height tested against its print, and a printed cover found in one image
         only placed in the other by its print (:mod:`rovis.sweep`; beyond the paper; needs
         the desk plane; the placing also ``stereo.transfer``).
