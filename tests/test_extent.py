@@ -1050,6 +1050,9 @@ def test_a_move_as_deep_as_half_the_cover_is_no_foot(light_tall_book):
     short = extent._moved(on_foot, (s + 2) % 4, np.array([1.9 * move - beside]))[0]
     assert np.linalg.norm(short[(s + 1) % 4] - short[(s + 2) % 4]) < 2 * move
     assert extent.foot_side(short, s, Q, grads, desk) == 0.0
+    # cut to 11 cm, more than twice the move: it moves
+    longer = extent._moved(on_foot, (s + 2) % 4, np.array([2.3 * move - beside]))[0]
+    assert extent.foot_side(longer, s, Q, grads, desk) > 0
 
 
 @pytest.fixture(scope="module")
