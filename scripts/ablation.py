@@ -68,6 +68,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the desk inside four seen sides dropped", ["stereo.desk_seen_ncc=1.01"]),
     ("a printed frame grown with a side whose margin meets the desk", ["extent.frame_sides=4"]),
     ("a facing side moved off its page block's foot (both images)", ["facing.feet=false"]),
+    ("a neighbour's edge of another height holds no side", ["extent.height_band=1"]),
 ]
 
 

@@ -1079,6 +1079,36 @@ def test_detect_takes_the_cover_not_its_page_block(scene_54_detected):
     assert np.linalg.norm(off.pose.center - true) > 0.01
 
 
+@pytest.fixture(scope="module")
+def scene_79_detected():
+    """Scene 79 of rovis synth --protocol table1 --seed 1 detected with the defaults and
+    with ``extent.height_band=1`` (any edge nearer the cover's height than the desk holds a
+    side, as before stop 60): per run, book 6's true centre and the book found nearest."""
+    sc, r = dataset_scene("table1", 1, 79)
+    true = np.array(r.truth["books"][6]["center"])
+    out = []
+    for settings in ([], ["extent.height_band=1"]):
+        res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
+        assert res.objects, settings
+        out.append((true, min(res.objects,
+                              key=lambda o: np.linalg.norm(o.pose.center - true))))
+    return out
+
+
+def test_a_taller_neighbours_edge_holds_no_side(scene_79_detected):
+    """build/rt1's scene 79: book 6 (159 x 103 x 18 mm), found by the dense map reaching
+    53 mm past its end, up to a 49 mm book's edge. The extent step finds the gap in its
+    sides' edges and the cover's end; stereo reads the edge the side lies on 31 mm above
+    the cover, beyond a side facing away from the cameras. As an edge nearer the cover's
+    height than the desk, it used to hold the side (25.8 mm off, the long axis turned 90
+    degrees)."""
+    (true, got), (_, held) = scene_79_detected
+    assert np.linalg.norm(got.pose.center - true) < 0.01  # m
+    assert np.linalg.norm(held.pose.center - true) > 0.02
+    L, W = sorted(got.pose.size[:2])[::-1]
+    assert abs(L - 0.159) < 0.015 and abs(W - 0.103) < 0.01
+
+
 # -- the cover's height from its sides' edges (extent.height_from_sides)
 
 
@@ -1124,6 +1154,43 @@ def test_sides_that_disagree_give_no_height(turned_book):
     P, Q, grads, desk, _ = turned_book
     strict = extent.SideHeightConfig(agree=0.0)  # no two fits agree exactly
     assert extent.height_from_sides(P, Q, grads, desk, strict) is None
+
+
+def test_an_edge_well_below_the_cover_holds_no_side(turned_book):
+    """The lone 20 mm book's cover laid 12 mm high: stereo reads three of its sides' edges
+    at the book's top, 12-14 mm below that cover. They hold no side pulled in
+    (``extent.height_band``, 8 mm), where before stop 60 any edge nearer the cover's
+    height than the desk did (``height_band`` 1 m); at the true height every side holds."""
+    P, Q, grads, desk = turned_book[:4]
+    up = desk[:3] / np.linalg.norm(desk[:3])
+    high = P + 0.012 * up
+    drop = extent._drop(high, desk)
+    for s in (0, 1, 2):
+        level = extent._edge_level(high, s, Q, grads, up, drop, ExtentConfig())
+        assert level is not None and abs(level - THICKNESS) < 0.003
+        assert not extent._at_cover_height(high, s, Q, grads, up, drop, ExtentConfig())
+        assert extent._at_cover_height(high, s, Q, grads, up, drop, ExtentConfig(height_band=1.0))
+    assert all(extent._at_cover_height(P, s, Q, grads, up, extent._drop(P, desk), ExtentConfig())
+               for s in range(4))
+
+
+def test_an_edge_well_above_holds_only_a_side_facing_the_cameras(turned_book):
+    """The same cover laid 12 mm low: its sides' edges read 10-12 mm above it. Beyond a side
+    facing the cameras a taller neighbour would hide the cover's end, and the edge holds
+    the side; beyond one facing away, the neighbour's face would show above the cover's
+    end, and it does not."""
+    P, Q, grads, desk = turned_book[:4]
+    up = desk[:3] / np.linalg.norm(desk[:3])
+    low = P - 0.012 * up
+    drop = extent._drop(low, desk)
+    away, facing = 0, 2
+    assert not extent._block_shows(low, away, Q, drop) and extent._block_shows(low, facing, Q, drop)
+    for s in (away, facing):
+        level = extent._edge_level(low, s, Q, grads, up, drop, ExtentConfig())
+        assert level is not None and abs(level - THICKNESS) < 0.003
+        assert extent._at_cover_height(low, s, Q, grads, up, drop, ExtentConfig(height_band=1.0))
+    assert not extent._at_cover_height(low, away, Q, grads, up, drop, ExtentConfig())
+    assert extent._at_cover_height(low, facing, Q, grads, up, drop, ExtentConfig())
 
 
 @pytest.mark.parametrize("enabled", [True, False])

@@ -85,6 +85,11 @@ class ExtentConfig:
     gap_edge_ratio: float = 0.35  # of a side's median edge strength: where its edge is missing
     height_check: bool = True  # stereo height of a moved side's edge: see _on_desk, _at_cover_height
     height_sigma: float = 0.5  # ...asked where stereo places the edge this well, of the cover's height
+    # a side pulled in is held by an edge at the cover's height: within height_band (or
+    # height_band_ratio of that height, if larger); one well below or, beyond a side facing
+    # away from the cameras, above it is a neighbour's the side reaches onto (_at_cover_height)
+    height_band: float = 0.008
+    height_band_ratio: float = 0.25
     # A cover found as the frame printed inside it (grow_frame): each side moved out to
     # the nearest edge within frame_min-frame_max where the margin has the cover's tone
     # inside the side and what lies beyond differs by more than frame_tone (of the
@@ -633,10 +638,22 @@ def _block_shows(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64
 def _at_cover_height(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
                      grads: dict[str, Gradients], up: NDArray[np.float64],
                      drop: NDArray[np.float64], cfg: ExtentConfig) -> bool:
-    """Whether the edge side ``s`` of cover ``P`` (4, 3) lies on is, by stereo, nearer the
-    cover's height than the desk."""
+    """Whether the edge side ``s`` of cover ``P`` (4, 3) lies on holds the side: by stereo,
+    at the cover's height (nearer it than the desk, and within ``cfg.height_band``, or
+    ``cfg.height_band_ratio`` of the height if larger: the cover's edge or a print on it),
+    or well above it beyond a side facing the cameras.
+
+    An edge well below is a lower neighbour's, which a side reaching past the cover lies on.
+    One well above is a taller neighbour's: beyond a side facing the cameras it hides the
+    cover's end, and the side may rightly lie on it; beyond a side facing away, the
+    neighbour's face towards the cover shows above the cover's end, and a side on its top
+    edge reaches over that face."""
     level = _edge_level(P, s, Q, grads, up, drop, cfg)
-    return level is not None and level >= 0.5 * float(np.linalg.norm(drop))
+    h = float(np.linalg.norm(drop))
+    band = max(cfg.height_band, cfg.height_band_ratio * h)
+    if level is None or level < max(0.5 * h, h - band):
+        return False
+    return level <= h + band or _block_shows(P, s, Q, drop)
 
 
 def _edge_level(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
