@@ -366,7 +366,7 @@ def test_stereo_places_a_cover_side_at_the_cover_height(lone_book):
         if level is not None and not extent._block_shows(P, s, Q, drop):
             measured += 1
             assert level == pytest.approx(THICKNESS, abs=0.005)
-            assert extent._at_cover_height(P, s, Q, grads, up, drop, ExtentConfig())
+            assert extent._holds_side(P, s, Q, grads, up, drop, ExtentConfig())
     assert measured >= 1
 
 
@@ -1158,7 +1158,7 @@ def test_sides_that_disagree_give_no_height(turned_book):
 
 def test_an_edge_well_below_the_cover_holds_no_side(turned_book):
     """The lone 20 mm book's cover laid 12 mm high: stereo reads three of its sides' edges
-    at the book's top, 12-14 mm below that cover. They hold no side pulled in
+    at the book's top, 12-15 mm below that cover. They hold no side pulled in
     (``extent.height_band``, 8 mm), where before stop 60 any edge nearer the cover's
     height than the desk did (``height_band`` 1 m); at the true height every side holds."""
     P, Q, grads, desk = turned_book[:4]
@@ -1168,9 +1168,9 @@ def test_an_edge_well_below_the_cover_holds_no_side(turned_book):
     for s in (0, 1, 2):
         level = extent._edge_level(high, s, Q, grads, up, drop, ExtentConfig())
         assert level is not None and abs(level - THICKNESS) < 0.003
-        assert not extent._at_cover_height(high, s, Q, grads, up, drop, ExtentConfig())
-        assert extent._at_cover_height(high, s, Q, grads, up, drop, ExtentConfig(height_band=1.0))
-    assert all(extent._at_cover_height(P, s, Q, grads, up, extent._drop(P, desk), ExtentConfig())
+        assert not extent._holds_side(high, s, Q, grads, up, drop, ExtentConfig())
+        assert extent._holds_side(high, s, Q, grads, up, drop, ExtentConfig(height_band=1.0))
+    assert all(extent._holds_side(P, s, Q, grads, up, extent._drop(P, desk), ExtentConfig())
                for s in range(4))
 
 
@@ -1188,9 +1188,9 @@ def test_an_edge_well_above_holds_only_a_side_facing_the_cameras(turned_book):
     for s in (away, facing):
         level = extent._edge_level(low, s, Q, grads, up, drop, ExtentConfig())
         assert level is not None and abs(level - THICKNESS) < 0.003
-        assert extent._at_cover_height(low, s, Q, grads, up, drop, ExtentConfig(height_band=1.0))
-    assert not extent._at_cover_height(low, away, Q, grads, up, drop, ExtentConfig())
-    assert extent._at_cover_height(low, facing, Q, grads, up, drop, ExtentConfig())
+        assert extent._holds_side(low, s, Q, grads, up, drop, ExtentConfig(height_band=1.0))
+    assert not extent._holds_side(low, away, Q, grads, up, drop, ExtentConfig())
+    assert extent._holds_side(low, facing, Q, grads, up, drop, ExtentConfig())
 
 
 @pytest.mark.parametrize("enabled", [True, False])

@@ -83,11 +83,12 @@ class ExtentConfig:
     weak_height: float = 0.004
     max_angle_deg: float = 25.0  # gradient this close to across the line counts
     gap_edge_ratio: float = 0.35  # of a side's median edge strength: where its edge is missing
-    height_check: bool = True  # stereo height of a moved side's edge: see _on_desk, _at_cover_height
+    height_check: bool = True  # stereo height of a moved side's edge: see _on_desk, _holds_side
     height_sigma: float = 0.5  # ...asked where stereo places the edge this well, of the cover's height
-    # a side pulled in is held by an edge at the cover's height: within height_band (or
-    # height_band_ratio of that height, if larger); one well below or, beyond a side facing
-    # away from the cameras, above it is a neighbour's the side reaches onto (_at_cover_height)
+    # a side the shrink would pull in stays where it lies on an edge at the cover's height:
+    # within height_band (or height_band_ratio of that height, if larger) and nearer it than
+    # the desk; one well below, or well above beyond a side facing away from the cameras,
+    # is a neighbour's the side reaches onto (_holds_side)
     height_band: float = 0.008
     height_band_ratio: float = 0.25
     # A cover found as the frame printed inside it (grow_frame): each side moved out to
@@ -154,8 +155,8 @@ def fit_extent(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     runs = _missing_runs(P, Q, grads, min_strength, cfg) if cfg.shrink else None
     for s in range(4 if cfg.shrink else 0):
         d = _shrink_side(P, s, runs, Q, grads, min_strength, cfg)
-        if d < 0 and cfg.height_check and _at_cover_height(P, s, Q, grads, up, drop, cfg):
-            d = 0.0  # the side is on a line at the cover's height: the cover's edge or a print
+        if d < 0 and cfg.height_check and _holds_side(P, s, Q, grads, up, drop, cfg):
+            d = 0.0  # on the cover's edge, a print on it, or a taller book hiding its end
         if d < -cfg.keep_print_margin and still_cover is not None:
             # the strip cut away, but for keep_print_margin next to the side's new place
             a, b = s, (s + 1) % 4
@@ -635,13 +636,14 @@ def _block_shows(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64
     return False
 
 
-def _at_cover_height(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
+def _holds_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
                      grads: dict[str, Gradients], up: NDArray[np.float64],
                      drop: NDArray[np.float64], cfg: ExtentConfig) -> bool:
     """Whether the edge side ``s`` of cover ``P`` (4, 3) lies on holds the side: by stereo,
     at the cover's height (nearer it than the desk, and within ``cfg.height_band``, or
     ``cfg.height_band_ratio`` of the height if larger: the cover's edge or a print on it),
-    or well above it beyond a side facing the cameras.
+    or well above it beyond a side facing the cameras (its page block shows in either
+    image: :func:`_block_shows`).
 
     An edge well below is a lower neighbour's, which a side reaching past the cover lies on.
     One well above is a taller neighbour's: beyond a side facing the cameras it hides the
