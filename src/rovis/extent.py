@@ -637,8 +637,8 @@ def _block_shows(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64
 
 
 def _holds_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
-                     grads: dict[str, Gradients], up: NDArray[np.float64],
-                     drop: NDArray[np.float64], cfg: ExtentConfig) -> bool:
+                grads: dict[str, Gradients], up: NDArray[np.float64],
+                drop: NDArray[np.float64], cfg: ExtentConfig) -> bool:
     """Whether the edge side ``s`` of cover ``P`` (4, 3) lies on holds the side: by stereo,
     at the cover's height (nearer it than the desk, and within ``cfg.height_band``, or
     ``cfg.height_band_ratio`` of the height if larger: the cover's edge or a print on it),
