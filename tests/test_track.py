@@ -63,6 +63,21 @@ def test_a_still_scene_is_followed_where_it_was_detected(still):
     assert within_1cm(detected) and within_1cm(detected) <= within_1cm(tracked)
 
 
+def test_a_followed_book_reports_how_well_it_agrees_with_the_new_frame(still):
+    """Quality and reprojection error of a tracked book are measured on the frame it was
+    followed into (rovis.agreement's measures, from the sides the tracker refit): about
+    what the detection measured of the same still book."""
+    sc, first, second, det, detected = still
+    tracked = _follow(det, first, second)
+    for a, b in zip(detected.objects, tracked.objects):
+        assert abs(a.quality - b.quality) < 0.05
+        assert 0.0 <= b.reprojection_error_px <= 3.0
+        assert abs(a.reprojection_error_px - b.reprojection_error_px) < 1.5
+    # as in the detection, books on their edges and books with a side off them
+    errors = [b.reprojection_error_px for b in tracked.objects]
+    assert min(errors) < 0.5 and max(errors) > 1.0
+
+
 def test_following_reads_only_around_the_books_as_the_whole_images_would(still, monkeypatch):
     """Tracking undistorts and differentiates only boxes around the books it follows; its
     answer is the one the whole images give."""

@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rovis import geometry, marker
+from rovis.agreement import AgreementConfig, agreement
 from rovis.calib import StereoRig
 from rovis.extent import (CompleteConfig, ExtentConfig, FacingConfig, SideHeightConfig,
                           _drop, _foot_is_edge, _grow_side, _moved, _on_desk, _side_scores, _unit,
@@ -170,6 +171,10 @@ class DetectConfig:
         cover's height tested against its print, and a printed cover found in one image
         only placed in the other by its print (:mod:`rovis.sweep`; beyond the paper; needs
         the desk plane; the placing also ``stereo.transfer``).
+    agreement
+        :class:`rovis.agreement.AgreementConfig`: each book as reported checked against
+        both images at the end of the frame, for its ``quality`` and
+        ``reprojection_error_px`` (:mod:`rovis.agreement`; beyond the paper).
     heightmap, trim
         :class:`rovis.heightmap.HeightMapConfig`, :class:`rovis.trim.TrimConfig`:
         books that stand out of the desk in a height map; with the maps, a plain cover
@@ -210,6 +215,7 @@ class DetectConfig:
     trim: TrimConfig = field(default_factory=TrimConfig)
     side_height: SideHeightConfig = field(default_factory=SideHeightConfig)
     track: TrackConfig = field(default_factory=TrackConfig)
+    agreement: AgreementConfig = field(default_factory=AgreementConfig)
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -635,6 +641,9 @@ class Detector:
                 warnings.append(f"{len(desk)} cover(s) whose inside matches on the desk "
                                 "dropped (the desk between books)")
         lap("overlaps")
+        # beyond the paper: each book as reported, checked against both images
+        found = self._agreed(f, found, self._edge_strength(segs))
+        lap("agreement")
         info = {cam: SegmentationInfo(T_H=segs[cam].T_H, T_HG=segs[cam].T_HG, y=segs[cam].y,
                                       iterations=segs[cam].iterations, n_quads=len(segs[cam]))
                 for cam in ("left", "right")}
@@ -691,19 +700,21 @@ class Detector:
         for pair, book, evidence in previous:
             moved = follow(f.grads, {"left": book.corners_left_px, "right": book.corners_right_px},
                            evidence, book.corners_world,
-                           f.rig.Q_L, f.rig.Q_R, f.desk_plane, strength, self.cfg.track)
+                           f.rig.Q_L, f.rig.Q_R, f.desk_plane, strength, self.cfg.track,
+                           reach_px=self.cfg.agreement.reach_px)
             if moved is None and book.source == "height map" and self.cfg.track.hold_height_map:
                 found.append((pair, book))  # nothing to follow it by: held where it was
                 continue
             if moved is None:
                 return None
-            P, c_left, c_right, reproj = moved
+            P, c_left, c_right, reproj, quality = moved
             pose = geometry.pose_from_corners(P, f.desk_plane)
             pair = replace(pair, left=c_left, right=c_right)
             if self._pose_fails(pose, P, f.desk_plane, pair):
                 return None
             found.append((pair, replace(book, pose=pose, corners_world=P, corners_left_px=c_left,
-                                        corners_right_px=c_right, reprojection_error_px=reproj)))
+                                        corners_right_px=c_right, reprojection_error_px=reproj,
+                                        quality=quality)))
         f.lap("track")
         info = {cam: replace(i, iterations=0) for cam, i in info.items()}
         self._tracks = ([(pair, book, evidence) for (pair, book), (_, _, evidence)
@@ -760,6 +771,25 @@ class Detector:
             f.grads[cam] = grad
         f.lap("gradients")
         return f
+
+    def _agreed(self, f: _Frame, found: list[tuple[Pair, BookDetection]],
+                strength: dict[str, float]) -> list[tuple[Pair, BookDetection]]:
+        """Each book with the ``quality`` and ``reprojection_error_px`` of its world corners
+        against both images (:func:`rovis.agreement.agreement`): until here they were its
+        pair's segmentation support and its corners' triangulation residual, which the
+        steps that move sides leave stale."""
+        cfg = self.cfg.agreement
+        thresholds = {cam: cfg.evidence * strength[cam] for cam in strength}
+        out = []
+        for pair, book in found:
+            if not np.all(np.isfinite(book.corners_world)):
+                out.append((pair, book))
+                continue
+            quads = {"left": geometry.project(f.rig.Q_L, book.corners_world),
+                     "right": geometry.project(f.rig.Q_R, book.corners_world)}
+            quality, error_px, _ = agreement(f.grads, quads, thresholds, reach_px=cfg.reach_px)
+            out.append((pair, replace(book, quality=quality, reprojection_error_px=error_px)))
+        return out
 
     def _remember(self, f: _Frame, found: list[tuple[Pair, BookDetection]],
                   info: dict[str, SegmentationInfo]) -> None:

@@ -53,13 +53,17 @@ class BookDetection:
     corners_left_px, corners_right_px : ndarray, shape (4, 2)
         The cover corners in the raw images, pixels, P1 (top-left in the left image) first.
     reprojection_error_px : float
-        Mean distance between the measured corners and the reprojected 3D corners (about 0
-        for a cover whose sides :mod:`rovis.extent` moved: its corners are then the
-        projections of the fitted 3D cover).
+        How far the cover, projected from ``corners_world`` into both images, lies from the
+        edges the images show along its sides: the root mean square distance over its
+        eight sides (four per image), pixels, each side's edge looked for within
+        ``agreement.reach_px`` (3 px) of it and a side without one counting that much
+        (:mod:`rovis.agreement`). Inside the detector, until the end of the frame, it is
+        the corners' triangulation residual.
     quality : float
-        Fraction of the cover's sides backed by edge pixels (worst of the two images; of the
-        one image whose segmentation found it, for a cover found in the other image by
-        :func:`rovis.stereo.find_in_other_view`).
+        The share of the cover's sides, as projected from ``corners_world``, that shows a
+        step across it: the mean over its four sides, in the worse of the two images, in
+        [0, 1] (:mod:`rovis.agreement`). Inside the detector, until the end of the frame,
+        it is its pair's segmentation support.
     stereo_error_px : float
         Mean distance of the right corners to where the left corners allow them (0 for a
         cover found in one image's segmentation only).
@@ -147,14 +151,15 @@ class FrameResult:
 
 def books_table(objects: list[BookDetection]) -> str:
     """A fixed-width text table of detected books, one row each: id, centre (m), yaw (°),
-    cover size and height (mm), mean reprojection error (px), how it was found."""
+    cover size and height (mm), reprojection error (px) and quality (:class:`BookDetection`'s),
+    how it was found."""
     header = (" id   center x      y      z [m]   yaw [°]   size [mm]    height [mm]"
-              "   reproj [px]   found by")
+              "   reproj [px]   quality   found by")
     rows = [header]
     for obj in objects:
         c, s = obj.pose.center, obj.pose.size * 1000.0
         height = f"{s[2]:8.1f}" if np.isfinite(s[2]) else "       -"
         rows.append(f"{obj.id:>3}   {c[0]:8.3f} {c[1]:6.3f} {c[2]:6.3f}   {obj.pose.yaw_deg:7.1f}"
                     f"   {s[0]:5.0f} x {s[1]:3.0f}   {height}"
-                    f"      {obj.reprojection_error_px:8.2f}   {obj.source}")
+                    f"      {obj.reprojection_error_px:8.2f}   {obj.quality:7.2f}   {obj.source}")
     return "\n".join(rows)

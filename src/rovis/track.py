@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from rovis import geometry
+from rovis.agreement import Line, side_offsets
 from rovis.segment.boundary import side_evidence
 from rovis.segment.edges import Gradients
 from rovis.segment.lines import intersect, refine_segment
@@ -69,15 +70,16 @@ class TrackConfig:
 
 
 def refit_quad(grad: Gradients, corners: NDArray[np.float64], window_px: float,
-               ) -> NDArray[np.float64] | None:
+               ) -> tuple[NDArray[np.float64], NDArray[np.bool_]] | None:
     """A quad's sides (corners (4, 2), pixels) refit to the gradient within ``window_px``
-    of where they are, neighbours intersected: the new corners (4, 2), or None where two
-    sides no longer meet near their corner. A side with too few edge points keeps its
-    place (:func:`rovis.segment.lines.refine_segment`)."""
-    sides = []
+    of where they are, neighbours intersected: the new corners (4, 2) and which sides were
+    refit (4,), or None where two sides no longer meet near their corner. A side with too
+    few edge points keeps its place (:func:`rovis.segment.lines.refine_segment`)."""
+    sides, fitted = [], np.zeros(4, bool)
     for s in range(4):
         a, b = corners[s], corners[(s + 1) % 4]
         fit = refine_segment(grad, a, b, half_width=window_px)
+        fitted[s] = fit is not None
         sides.append(fit if fit is not None
                      else (0.5 * (a + b), (b - a) / max(float(np.linalg.norm(b - a)), 1e-12)))
     out = np.empty_like(corners)
@@ -87,13 +89,15 @@ def refit_quad(grad: Gradients, corners: NDArray[np.float64], window_px: float,
         if p is None or np.linalg.norm(p - corners[s]) > 4.0 * window_px:
             return None
         out[s] = p
-    return out
+    return out, fitted
 
 
 def follow(grads: dict[str, Gradients], corners: dict[str, NDArray[np.float64]],
            evidence: dict[str, NDArray[np.float64]], P_before: ArrayLike, Q_L: ArrayLike,
            Q_R: ArrayLike, desk_plane: ArrayLike, strength: dict[str, float],
-           cfg: TrackConfig = TrackConfig()) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float] | None:
+           cfg: TrackConfig = TrackConfig(), *, reach_px: float = 3.0,
+           ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float,
+                      float] | None:
     """One known book measured again in a new frame.
 
     Parameters
@@ -116,24 +120,33 @@ def follow(grads: dict[str, Gradients], corners: dict[str, NDArray[np.float64]],
     strength : dict of float
         Per camera, the derivative across a side that counts as an edge (the Canny low
         threshold of the frame the book was detected in).
+    reach_px : float
+        What a side this frame could not refit counts in the error, pixels (as a side
+        without an edge counts in :func:`rovis.agreement.agreement`).
 
     Returns
     -------
-    (P, left, right, error) or None
+    (P, left, right, error, quality) or None
         The cover's corners in the world (4, 3), metres (a rectangle parallel to the desk
-        where one fits); their projections into both ideal images (4, 2) each; the mean
-        distance of the refit corners to them (px). None where the book is not where it
-        was: a corner whose sides no longer meet near it, or a side that lost its edge.
+        where one fits); their projections into both ideal images (4, 2) each; the root
+        mean square distance of those projected sides to the refit ones, over both images'
+        eight sides (px); the mean edge evidence of the four refit sides in the worse
+        image (:mod:`rovis.agreement`'s measures, from the sides this frame refit: one it
+        could not refit counts ``reach_px``). None
+        where the book is not where it was: a corner whose sides no longer meet near it,
+        or a side that lost its edge.
     """
-    refit = {}
+    refit, fitted, support = {}, {}, []
     for cam in ("left", "right"):
-        c = refit_quad(grads[cam], np.asarray(corners[cam], dtype=np.float64), cfg.window_px)
-        if c is None:
+        got = refit_quad(grads[cam], np.asarray(corners[cam], dtype=np.float64), cfg.window_px)
+        if got is None:
             return None
+        c, fitted[cam] = got
         now = side_evidence(grads[cam], c, cfg.evidence * strength[cam])
         if np.any(now < cfg.keep * np.asarray(evidence[cam])):
             return None  # a side lost its edge: the book moved or is gone
         refit[cam] = c
+        support.append(float(now.mean()))
     P0 = geometry.triangulate_dlt(Q_L, Q_R, refit["left"], refit["right"])
     if not np.all(np.isfinite(P0)):
         return None
@@ -147,9 +160,20 @@ def follow(grads: dict[str, Gradients], corners: dict[str, NDArray[np.float64]],
         # completed off its edge): its corners triangulated one by one, as detected
         P = P0
     left, right = geometry.project(Q_L, P), geometry.project(Q_R, P)
-    off = np.concatenate([np.linalg.norm(left - refit["left"], axis=1),
-                          np.linalg.norm(right - refit["right"], axis=1)])
-    return P, left, right, float(off.mean())
+    off = np.concatenate([np.where(fitted[cam], side_offsets(model, _sides(refit[cam])),
+                                   reach_px)
+                          for cam, model in (("left", left), ("right", right))])
+    off = np.minimum(off, reach_px)
+    return P, left, right, float(np.sqrt(np.mean(off ** 2))), min(support)
+
+
+def _sides(quad: NDArray[np.float64]) -> list[Line]:
+    """The lines through a quad's (4, 2) neighbouring corners, side s from corner s."""
+    out = []
+    for s in range(4):
+        d = quad[(s + 1) % 4] - quad[s]
+        out.append((quad[s], d / max(float(np.linalg.norm(d)), 1e-12)))
+    return out
 
 
 def _fits(P: NDArray[np.float64], Q_L: ArrayLike, Q_R: ArrayLike,
