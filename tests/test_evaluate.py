@@ -135,6 +135,30 @@ def test_errors_and_false_positives_by_how_each_book_was_found():
     assert ev.source_breakdown([old], ["closed"]) == {"closed": {}}
 
 
+def test_detections_counted_by_how_well_they_agree_with_the_images():
+    books = [_book([0.1, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),
+             _book([0.4, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03])]
+    dets = [_book([0.101, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),
+            _book([0.42, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),  # 2 cm off: past the tolerance
+            _book([0.8, 0.5, 0.03], 0.0, [0.2, 0.15, 0.03])]  # a false positive
+    score = {**score_books(books, dets), "quality": [1.0, 0.85, 0.95],
+             "reprojection_error_px": [0.2, 1.0, 2.5]}
+    record = {"books": [{"visible": True}] * 2, "methods": {"closed": score}}
+    by = ev.agreement_breakdown([record, record], ["closed"])["closed"]
+    q, e = by["quality"], by["reprojection_error_px"]
+    assert list(q) == [">= 0.95", "0.9-0.95", "0.8-0.9", "< 0.8"]
+    assert q[">= 0.95"] == {"detections": 4, "within_1cm": 2, "over_1cm": 0, "false_positives": 2}
+    assert q["0.8-0.9"] == {"detections": 2, "within_1cm": 0, "over_1cm": 2, "false_positives": 0}
+    assert list(e) == ["<= 0.5", "0.5-1", "1-1.5", "> 1.5"]  # 1.0 is in the band it ends
+    assert (e["<= 0.5"]["within_1cm"], e["0.5-1"]["over_1cm"], e["> 1.5"]["false_positives"]) \
+        == (2, 2, 2)
+    text = ev.agreement_table({"closed": by})
+    assert "reprojection error px" in text and "100%" in text and "0%" in text
+    # a results.json written before the measures were recorded: nothing to say
+    old = {"books": record["books"], "methods": {"closed": score_books(books, dets)}}
+    assert ev.agreement_breakdown([old], ["closed"]) == {"closed": {}}
+
+
 def test_paper_figures_beside_ours():
     assert ev.paper_reference("closed", "table1") is ev.PAPER_TABLE_I
     assert ev.paper_reference("open", "table2").max == (0.6294, 0.2513, 0.7881, 34.0)
@@ -164,6 +188,7 @@ def test_eval_cli_with_one_and_two_workers_gives_identical_results(dataset, seri
                      str(workers), "--out", str(out)]) == 0
         captured = capsys.readouterr()
         assert "Max error" in captured.out and "paper Table I" in captured.out
+        assert "agrees with the images" in captured.out
         assert "0 scenes skipped" in captured.out
         assert "2/2 scenes" in captured.err
         for name in ("results.json", "report.txt", "positions.png", "yaw.png", "lux.png"):
@@ -179,6 +204,11 @@ def test_eval_cli_with_one_and_two_workers_gives_identical_results(dataset, seri
     for scene in a["scenes"]:
         assert set(scene["methods"]) == set(METHODS)
         assert len(scene["books"]) == len(scene["methods"]["closed"]["found"])
+        closed = scene["methods"]["closed"]
+        n = closed["n_detections"]
+        assert len(closed["quality"]) == len(closed["reprojection_error_px"]) == n
+        assert all(0.0 <= q <= 1.0 for q in closed["quality"])
+        assert all(0.0 <= e <= 3.0 for e in closed["reprojection_error_px"])
 
 
 def test_dask_cluster_gives_the_local_results(dataset, serial):

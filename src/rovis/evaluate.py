@@ -38,6 +38,10 @@ VISIBLE_MIN = 0.90  # "well visible": this fraction of the cover seen in both im
 SQUARE_TOL_M = 0.01  # length and width closer than this: the cover is a square (yaw mod 90°)
 LUX_EDGES: tuple[float, ...] = (15.0, 50.0, 150.0, 500.0, 1200.0)
 ERROR_KEYS: tuple[str, ...] = ("x", "y", "z", "psi_deg", "length", "width", "height")
+# the bands of each detection's agreement with the images (rovis.agreement) the report
+# counts within and beyond the grasp tolerance: quality from the top, the error from 0
+AGREEMENT_BANDS: dict[str, tuple[float, ...]] = {"quality": (0.95, 0.9, 0.8),
+                                                 "reprojection_error_px": (0.5, 1.0, 1.5)}
 SCHEMA = "rovis-eval/1"
 
 Progress = Callable[[int, int, int], None]  # (done, total, skipped)
@@ -325,7 +329,8 @@ def score_scene(scene_dir: str | os.PathLike[str], detectors: Mapping[str, Any])
         ``scene`` (the folder's name), the scene's ``protocol``, ``lux``, ``light``,
         ``exposure`` and true ``books``, per method the :func:`score_books` record under
         ``methods`` (with ``sources``: per detection, how it was found,
-        :attr:`rovis.results.BookDetection.source`), and ``timing_ms`` (per method, the
+        :attr:`rovis.results.BookDetection.source`; and ``quality`` and
+        ``reprojection_error_px``, per detection too), and ``timing_ms`` (per method, the
         pipeline's wall time). A method that raised on the scene has ``failed`` (the
         exception, named) in its record and no detections: its books count as missed. A
         scene no method can run on (unreadable, or images the calibration does not fit) is
@@ -359,6 +364,10 @@ def score_scene(scene_dir: str | os.PathLike[str], detectors: Mapping[str, Any])
         dets = [Book.from_pose(obj.pose, obj.id) for obj in result.objects]
         record["methods"][method] = score_books(truth, dets, up=up)
         record["methods"][method]["sources"] = [obj.source for obj in result.objects]
+        # per detection, how well it agrees with the images (rovis.agreement)
+        record["methods"][method]["quality"] = [round(obj.quality, 4) for obj in result.objects]
+        record["methods"][method]["reprojection_error_px"] = [
+            round(obj.reprojection_error_px, 4) for obj in result.objects]
     return record
 
 
@@ -719,6 +728,50 @@ def source_breakdown(records: Sequence[Mapping[str, Any]], methods: Sequence[str
     return out
 
 
+def agreement_breakdown(records: Sequence[Mapping[str, Any]],
+                        methods: Sequence[str]) -> dict[str, Any]:
+    """Per method and per measure of how well each detection agrees with the images
+    (``quality``, ``reprojection_error_px``: :mod:`rovis.agreement`), per band of it
+    (:data:`AGREEMENT_BANDS`, best first): ``detections``, ``within_1cm`` (matched, within
+    the grasp tolerance on every axis), ``over_1cm`` (matched, beyond it) and
+    ``false_positives``. What a robot can expect of a book reported with such a value.
+    Records without the measures (an older results.json) count nothing."""
+    out: dict[str, Any] = {}
+    for method in methods:
+        per: dict[str, dict[str, dict[str, int]]] = {}
+        for measure, edges in AGREEMENT_BANDS.items():
+            best_high = measure == "quality"
+            labels = ([f">= {edges[0]:g}"] + [f"{b:g}-{a:g}" for a, b in zip(edges, edges[1:])]
+                      + [f"< {edges[-1]:g}"]) if best_high else (
+                [f"<= {edges[0]:g}"] + [f"{a:g}-{b:g}" for a, b in zip(edges, edges[1:])]
+                + [f"> {edges[-1]:g}"])
+            bands = {label: {"detections": 0, "within_1cm": 0, "over_1cm": 0,
+                             "false_positives": 0} for label in labels}
+            counted = False
+            for rec in records:
+                score = rec["methods"].get(method)
+                if score is None or measure not in score:
+                    continue
+                counted = True
+                matched = {m["detection"]: m for m in score["matches"]}
+                for j, value in enumerate(score[measure]):
+                    k = (sum(value < e for e in edges) if best_high
+                         else sum(value > e for e in edges))
+                    band = bands[labels[k]]
+                    band["detections"] += 1
+                    if j not in matched:
+                        band["false_positives"] += 1
+                    elif max(abs(matched[j]["errors"][c]) for c in ("x", "y", "z")) \
+                            <= GRASP_TOLERANCE_M:
+                        band["within_1cm"] += 1
+                    else:
+                        band["over_1cm"] += 1
+            if counted:
+                per[measure] = bands
+        out[method] = per
+    return out
+
+
 # --------------------------------------------------------------------------- text
 
 
@@ -823,10 +876,31 @@ def source_table(sources: Mapping[str, Mapping[str, Mapping[str, Any]]]) -> str:
     return "\n".join(rows)
 
 
+def agreement_table(agreement: Mapping[str, Mapping[str, Mapping[str, Mapping[str, int]]]],
+                    ) -> str:
+    """Detections within and beyond the grasp tolerance, and false positives, per method,
+    measure and band of it (:func:`agreement_breakdown`)."""
+    rows = [f"{'method':<14}{'measure':<24}{'band':<12}{'detections':>11}{'within 1 cm':>12}"
+            f"{'>1 cm':>6}{'FP':>5}{'within':>8}"]
+    for method, per in agreement.items():
+        first = True
+        for measure, bands in per.items():
+            name = "quality" if measure == "quality" else "reprojection error px"
+            for k, (label, b) in enumerate(bands.items()):
+                share = (f"{100.0 * b['within_1cm'] / b['detections']:7.0f}%"
+                         if b["detections"] else f"{'-':>8}")
+                rows.append(f"{method if first else '':<14}{name if k == 0 else '':<24}"
+                            f"{label:<12}{b['detections']:>11}{b['within_1cm']:>12}"
+                            f"{b['over_1cm']:>6}{b['false_positives']:>5}{share}")
+                first = False
+    return "\n".join(rows)
+
+
 def report(ev: Evaluation) -> str:
     """The text ``rovis eval`` prints: per method the Tables I/II block, a summary of all
     methods, and the breakdowns by light level, light and exposure (means, and the largest
-    position errors in metres), and by how each detection was found."""
+    position errors in metres), by how each detection was found and by how well it agrees
+    with the images."""
     summary = ev.summary()
     parts = [method_table(m, summary[m], paper_reference(m, ev.protocol)) for m in ev.methods]
     if ev.settings:
@@ -841,6 +915,11 @@ def report(ev: Evaluation) -> str:
     if any(sources.values()):
         parts.append("By how each detection was found (>1 cm: matched books beyond the grasp "
                      "tolerance on some axis):\n" + source_table(sources))
+    agreement = agreement_breakdown(ev.scenes, ev.methods)
+    if any(agreement.values()):
+        parts.append("By how well each detection agrees with the images (its quality and "
+                     "reprojection error; within: the share of its band within 1 cm):\n"
+                     + agreement_table(agreement))
     return "\n\n".join(parts)
 
 
