@@ -92,9 +92,9 @@ def test_a_detected_book_moved_off_its_edges_agrees_less(still_detection):
     a cover that agrees with them to a pixel no longer does once moved 8 mm along the
     desk (about 6 px in these images)."""
     det, f, objects, strength = still_detection
-    thresholds = {cam: 0.5 * strength[cam] for cam in strength}
+    thresholds = {cam: det.cfg.agreement.evidence * strength[cam] for cam in strength}
 
-    def agree(P):
+    def agree(P: np.ndarray) -> tuple[float, float, dict[str, np.ndarray]]:
         return agreement(f.grads, {"left": geometry.project(f.rig.Q_L, P),
                                    "right": geometry.project(f.rig.Q_R, P)}, thresholds)
 

@@ -146,14 +146,22 @@ def test_detections_counted_by_how_well_they_agree_with_the_images():
     record = {"books": [{"visible": True}] * 2, "methods": {"closed": score}}
     by = ev.agreement_breakdown([record, record], ["closed"])["closed"]
     q, e = by["quality"], by["reprojection_error_px"]
-    assert list(q) == [">= 0.95", "0.9-0.95", "0.8-0.9", "< 0.8"]
-    assert q[">= 0.95"] == {"detections": 4, "within_1cm": 2, "over_1cm": 0, "false_positives": 2}
-    assert q["0.8-0.9"] == {"detections": 2, "within_1cm": 0, "over_1cm": 2, "false_positives": 0}
-    assert list(e) == ["<= 0.5", "0.5-1", "1-1.5", "> 1.5"]  # 1.0 is in the band it ends
-    assert (e["<= 0.5"]["within_1cm"], e["0.5-1"]["over_1cm"], e["> 1.5"]["false_positives"]) \
-        == (2, 2, 2)
+    assert list(q) == ["[0.95, 1]", "[0.9, 0.95)", "[0.8, 0.9)", "[0, 0.8)"]
+    assert q["[0.95, 1]"] == {"detections": 4, "within_1cm": 2, "over_1cm": 0,
+                              "false_positives": 2}  # 0.95 on the edge: the better band
+    assert q["[0.8, 0.9)"] == {"detections": 2, "within_1cm": 0, "over_1cm": 2,
+                               "false_positives": 0}
+    assert list(e) == ["[0, 0.5]", "(0.5, 1]", "(1, 1.5]", "> 1.5"]
+    assert (e["[0, 0.5]"]["within_1cm"], e["(0.5, 1]"]["over_1cm"],
+            e["> 1.5"]["false_positives"]) == (2, 2, 2)
     text = ev.agreement_table({"closed": by})
-    assert "reprojection error px" in text and "100%" in text and "0%" in text
+    assert "reprojection error px" in text
+    assert re.search(r"\[0\.8, 0\.9\)\s+2\s+0\s+2\s+0\s+0%", text)
+    assert re.search(r"\[0, 0\.5\]\s+2\s+2\s+0\s+0\s+100%", text)
+    # a value not measured counts in the worst band
+    score["quality"] = [float("nan"), 0.85, 0.95]
+    assert ev.agreement_breakdown([record], ["closed"])["closed"]["quality"]["[0, 0.8)"] == {
+        "detections": 1, "within_1cm": 1, "over_1cm": 0, "false_positives": 0}
     # a results.json written before the measures were recorded: nothing to say
     old = {"books": record["books"], "methods": {"closed": score_books(books, dets)}}
     assert ev.agreement_breakdown([old], ["closed"]) == {"closed": {}}

@@ -6,13 +6,19 @@ grows), and most books leave the pipeline as a 3D rectangle whose corners in eac
 its projections. The corners' own reprojection error is then about 0 whatever the images
 show. So the book as reported is checked against both images once more, at the end:
 
-- **edge support** (:func:`rovis.segment.boundary.side_evidence`): per side, the share of
-  its length that shows a step across it; a book's ``quality`` is the mean over its four
-  sides, in the worse of the two images;
+- **edge support** (:func:`edge_quality`, :func:`rovis.segment.boundary.side_evidence`):
+  per side, the share of its length that shows a step across it; a book's ``quality`` is
+  the mean over its four sides, in the worse of the two images;
 - **edge offset** (:func:`edge_offsets`): per side, the root mean square distance along it
   between the side as projected and the edge the image shows within ``reach_px`` of it;
   a book's ``reprojection_error_px`` is the root mean square over its eight sides (four per
-  image), a side with no edge there counting ``reach_px``.
+  image), a side with no edge there counting ``reach_px``. The edge is fitted as the
+  segmentation refines a side (:func:`rovis.segment.lines.refine_segment`), whose peaks
+  must lie inside its window: an edge is found up to about half a pixel less far than
+  ``reach_px``, and a side further off counts ``reach_px``.
+
+In a frame :meth:`rovis.pipeline.Detector.track` follows, the quality is measured the same
+way, and the error from the sides the tracker refit (:func:`rovis.track.follow`).
 
 Neither is a probability. Measured on the synthetic sets (docs/stereo.md, "How well a book
 agrees with the images"), books found beyond the grasp tolerance and false positives have
@@ -43,7 +49,7 @@ class AgreementConfig:
     evidence : float
         The derivative across a side that counts as a step, as a share of the image's
         Canny low threshold (:meth:`rovis.pipeline.Detector._edge_strength`): what
-        ``quality`` counts (the tracker's ``track.evidence`` by default).
+        ``quality`` counts (0.5, as ``track.evidence``'s default; the two are set apart).
     reach_px : float
         Pixels: how far from a projected side its edge is looked for, and what a side
         without one counts in ``reprojection_error_px``.
@@ -58,11 +64,22 @@ class AgreementConfig:
 
 
 def side_offsets(quad: NDArray[np.float64], lines: Sequence[Line | None]) -> NDArray[np.float64]:
-    """Per side of ``quad`` (4, 2), pixels: the root mean square distance along it to
-    ``lines[s]`` (side s runs from corner s to corner s + 1), NaN where that is None.
+    """Per side of a quad, the root mean square distance along it to a line.
 
     The distance to a line changes linearly along a segment, from d_a at one end to d_b at
     the other; its mean square over the segment is (d_a² + d_a·d_b + d_b²) / 3.
+
+    Parameters
+    ----------
+    quad : ndarray, shape (4, 2)
+        Corners, pixels; side s runs from corner s to corner s + 1.
+    lines : sequence of 4 (point, unit direction) or None
+        The line each side is measured against, pixels.
+
+    Returns
+    -------
+    ndarray, shape (4,)
+        Pixels; NaN where the line is None.
     """
     out = np.full(4, np.nan)
     for s, line in enumerate(lines):
@@ -71,18 +88,45 @@ def side_offsets(quad: NDArray[np.float64], lines: Sequence[Line | None]) -> NDA
         p, d = line
         n = np.array([-d[1], d[0]])
         da, db = (quad[s] - p) @ n, (quad[(s + 1) % 4] - p) @ n
-        out[s] = np.sqrt(max(da * da + da * db + db * db, 0.0) / 3.0)
+        out[s] = np.sqrt((da * da + da * db + db * db) / 3.0)
     return out
 
 
 def edge_offsets(grad: Gradients, quad: NDArray[np.float64], *,
                  reach_px: float = 3.0) -> NDArray[np.float64]:
-    """Per side of ``quad`` (4, 2), pixels: how far the edge the image shows along it lies
-    from it (:func:`side_offsets`), the edge fitted within ``reach_px`` of the side
-    (:func:`rovis.segment.lines.refine_segment`); NaN where too few edge points lie there."""
+    """Per side of a quad, how far the edge the image shows along it lies from it.
+
+    Parameters
+    ----------
+    grad : Gradients
+        The image's gradients.
+    quad : ndarray, shape (4, 2)
+        Corners, pixels (the image's ideal frame); side s from corner s to corner s + 1.
+    reach_px : float
+        How far from each side its edge is fitted
+        (:func:`rovis.segment.lines.refine_segment`'s ``half_width``).
+
+    Returns
+    -------
+    ndarray, shape (4,)
+        :func:`side_offsets` to each side's fitted edge, pixels; NaN where too few edge
+        points lie within reach. A side tilted against its edge may read more than
+        ``reach_px``.
+    """
     lines = [refine_segment(grad, quad[s], quad[(s + 1) % 4], half_width=reach_px)
              for s in range(4)]
     return side_offsets(quad, lines)
+
+
+def edge_quality(grads: dict[str, Gradients], quads: dict[str, NDArray[np.float64]],
+                 thresholds: dict[str, float]) -> tuple[float, dict[str, NDArray[np.float64]]]:
+    """A book's ``quality``: the mean edge support of its four sides, in the worse image.
+
+    Parameters are :func:`agreement`'s. Returns the quality, in [0, 1], and per camera each
+    side's edge support (4,) (:func:`rovis.segment.boundary.side_evidence`).
+    """
+    support = {cam: side_evidence(grads[cam], quads[cam], thresholds[cam]) for cam in quads}
+    return float(min(s.mean() for s in support.values())), support
 
 
 def agreement(grads: dict[str, Gradients], quads: dict[str, NDArray[np.float64]],
@@ -110,9 +154,8 @@ def agreement(grads: dict[str, Gradients], quads: dict[str, NDArray[np.float64]]
     support : dict of ndarray, shape (4,)
         Per camera, each side's edge support.
     """
-    support = {cam: side_evidence(grads[cam], quads[cam], thresholds[cam]) for cam in quads}
+    quality, support = edge_quality(grads, quads, thresholds)
     offsets = np.concatenate([edge_offsets(grads[cam], quads[cam], reach_px=reach_px)
                               for cam in quads])
     offsets = np.minimum(np.nan_to_num(offsets, nan=reach_px), reach_px)
-    quality = float(min(s.mean() for s in support.values()))
     return quality, float(np.sqrt(np.mean(offsets ** 2))), support

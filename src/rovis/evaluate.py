@@ -740,10 +740,12 @@ def agreement_breakdown(records: Sequence[Mapping[str, Any]],
     for method in methods:
         per: dict[str, dict[str, dict[str, int]]] = {}
         for measure, edges in AGREEMENT_BANDS.items():
+            # a value on a band's edge counts in the better band: [0.9, 0.95), (0.5, 1]
             best_high = measure == "quality"
-            labels = ([f">= {edges[0]:g}"] + [f"{b:g}-{a:g}" for a, b in zip(edges, edges[1:])]
-                      + [f"< {edges[-1]:g}"]) if best_high else (
-                [f"<= {edges[0]:g}"] + [f"{a:g}-{b:g}" for a, b in zip(edges, edges[1:])]
+            labels = ([f"[{edges[0]:g}, 1]"]
+                      + [f"[{b:g}, {a:g})" for a, b in zip(edges, edges[1:])]
+                      + [f"[0, {edges[-1]:g})"]) if best_high else (
+                [f"[0, {edges[0]:g}]"] + [f"({a:g}, {b:g}]" for a, b in zip(edges, edges[1:])]
                 + [f"> {edges[-1]:g}"])
             bands = {label: {"detections": 0, "within_1cm": 0, "over_1cm": 0,
                              "false_positives": 0} for label in labels}
@@ -755,7 +757,8 @@ def agreement_breakdown(records: Sequence[Mapping[str, Any]],
                 counted = True
                 matched = {m["detection"]: m for m in score["matches"]}
                 for j, value in enumerate(score[measure]):
-                    k = (sum(value < e for e in edges) if best_high
+                    k = (len(edges) if not np.isfinite(value)  # unmeasured: the worst band
+                         else sum(value < e for e in edges) if best_high
                          else sum(value > e for e in edges))
                     band = bands[labels[k]]
                     band["detections"] += 1
@@ -880,7 +883,7 @@ def agreement_table(agreement: Mapping[str, Mapping[str, Mapping[str, Mapping[st
                     ) -> str:
     """Detections within and beyond the grasp tolerance, and false positives, per method,
     measure and band of it (:func:`agreement_breakdown`)."""
-    rows = [f"{'method':<14}{'measure':<24}{'band':<12}{'detections':>11}{'within 1 cm':>12}"
+    rows = [f"{'method':<14}{'measure':<24}{'band':<13}{'detections':>11}{'within 1 cm':>12}"
             f"{'>1 cm':>6}{'FP':>5}{'within':>8}"]
     for method, per in agreement.items():
         first = True
@@ -890,7 +893,7 @@ def agreement_table(agreement: Mapping[str, Mapping[str, Mapping[str, Mapping[st
                 share = (f"{100.0 * b['within_1cm'] / b['detections']:7.0f}%"
                          if b["detections"] else f"{'-':>8}")
                 rows.append(f"{method if first else '':<14}{name if k == 0 else '':<24}"
-                            f"{label:<12}{b['detections']:>11}{b['within_1cm']:>12}"
+                            f"{label:<13}{b['detections']:>11}{b['within_1cm']:>12}"
                             f"{b['over_1cm']:>6}{b['false_positives']:>5}{share}")
                 first = False
     return "\n".join(rows)

@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rovis import geometry, marker
-from rovis.agreement import AgreementConfig, agreement
+from rovis.agreement import AgreementConfig, agreement, edge_quality
 from rovis.calib import StereoRig
 from rovis.extent import (CompleteConfig, ExtentConfig, FacingConfig, SideHeightConfig,
                           _drop, _foot_is_edge, _grow_side, _moved, _on_desk, _side_scores, _unit,
@@ -667,7 +667,9 @@ class Detector:
         no book in it (a desk to watch for books put down), no desk plane, or any book is
         not where it was: a side that lost its edge, a corner whose sides no longer meet
         near it, or a cover that now fails the pose checks. A height-map book that cannot
-        be followed is held where it was instead (``TrackConfig.hold_height_map``).
+        be followed is held where it was instead (``TrackConfig.hold_height_map``). Each
+        book's ``quality`` and ``reprojection_error_px`` are this frame's
+        (:mod:`rovis.agreement`; a followed book's error from the sides refit here).
 
         Raises
         ------
@@ -696,6 +698,7 @@ class Detector:
             return None
         previous, info = self._tracks
         strength = self._edge_strength(info)
+        thresholds = {cam: self.cfg.agreement.evidence * strength[cam] for cam in strength}
         found: list[tuple[Pair, BookDetection]] = []
         for pair, book, evidence in previous:
             moved = follow(f.grads, {"left": book.corners_left_px, "right": book.corners_right_px},
@@ -703,15 +706,18 @@ class Detector:
                            f.rig.Q_L, f.rig.Q_R, f.desk_plane, strength, self.cfg.track,
                            reach_px=self.cfg.agreement.reach_px)
             if moved is None and book.source == "height map" and self.cfg.track.hold_height_map:
-                found.append((pair, book))  # nothing to follow it by: held where it was
+                # nothing to follow it by: held where it was, checked against this frame
+                found += self._agreed(f, [(pair, book)], strength)
                 continue
             if moved is None:
                 return None
-            P, c_left, c_right, reproj, quality = moved
+            P, c_left, c_right, reproj = moved
             pose = geometry.pose_from_corners(P, f.desk_plane)
             pair = replace(pair, left=c_left, right=c_right)
             if self._pose_fails(pose, P, f.desk_plane, pair):
                 return None
+            # the book's quality measured as the detection measures it (rovis.agreement)
+            quality, _ = edge_quality(f.grads, {"left": c_left, "right": c_right}, thresholds)
             found.append((pair, replace(book, pose=pose, corners_world=P, corners_left_px=c_left,
                                         corners_right_px=c_right, reprojection_error_px=reproj,
                                         quality=quality)))
@@ -780,13 +786,13 @@ class Detector:
         steps that move sides leave stale."""
         cfg = self.cfg.agreement
         thresholds = {cam: cfg.evidence * strength[cam] for cam in strength}
+        Q = {"left": f.rig.Q_L, "right": f.rig.Q_R}  # (each access builds the matrix)
         out = []
         for pair, book in found:
-            if not np.all(np.isfinite(book.corners_world)):
-                out.append((pair, book))
+            if not np.all(np.isfinite(book.corners_world)):  # no cover to project: none seen
+                out.append((pair, replace(book, quality=0.0, reprojection_error_px=cfg.reach_px)))
                 continue
-            quads = {"left": geometry.project(f.rig.Q_L, book.corners_world),
-                     "right": geometry.project(f.rig.Q_R, book.corners_world)}
+            quads = {cam: geometry.project(Q[cam], book.corners_world) for cam in Q}
             quality, error_px, _ = agreement(f.grads, quads, thresholds, reach_px=cfg.reach_px)
             out.append((pair, replace(book, quality=quality, reprojection_error_px=error_px)))
         return out

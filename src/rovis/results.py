@@ -57,13 +57,15 @@ class BookDetection:
         edges the images show along its sides: the root mean square distance over its
         eight sides (four per image), pixels, each side's edge looked for within
         ``agreement.reach_px`` (3 px) of it and a side without one counting that much
-        (:mod:`rovis.agreement`). Inside the detector, until the end of the frame, it is
-        the corners' triangulation residual.
+        (:mod:`rovis.agreement`). In a tracked frame, from the sides the tracker refit
+        within ``track.window_px`` of where they were (:func:`rovis.track.follow`).
+        Inside the detector, until the end of the frame, it is the corners' triangulation
+        residual (what ``stereo.late_max_reprojection_px`` bounds).
     quality : float
-        The share of the cover's sides, as projected from ``corners_world``, that shows a
-        step across it: the mean over its four sides, in the worse of the two images, in
-        [0, 1] (:mod:`rovis.agreement`). Inside the detector, until the end of the frame,
-        it is its pair's segmentation support.
+        How much of the cover's outline, as projected from ``corners_world``, shows a
+        step across it: per side the share of its length, the mean over its four sides,
+        in the worse of the two images; in [0, 1] (:mod:`rovis.agreement`). Inside the
+        detector, until the end of the frame, it is its pair's segmentation support.
     stereo_error_px : float
         Mean distance of the right corners to where the left corners allow them (0 for a
         cover found in one image's segmentation only).

@@ -158,7 +158,9 @@ class StereoConfig:
     # After the height maps, a pair with a quad among the other T_H's candidates
     # (Segmentation.late_pool):
     # the rectangle fitted to both images' corners must reproject within this mean
-    # distance (px; a pair whose near side is the cover's edge in one image and its page
+    # distance of them (px: the corners' triangulation residual, not the output's
+    # reprojection_error_px, which rovis.agreement measures at the end of the frame; a
+    # pair whose near side is the cover's edge in one image and its page
     # block's foot in the other makes a flat cover at the wrong height, 3 px off; a pair
     # completed in 3D or moved by its print is its 3D cover's projection, 0 px off)
     late_max_reprojection_px: float = 1.0

@@ -96,7 +96,7 @@ def follow(grads: dict[str, Gradients], corners: dict[str, NDArray[np.float64]],
            evidence: dict[str, NDArray[np.float64]], P_before: ArrayLike, Q_L: ArrayLike,
            Q_R: ArrayLike, desk_plane: ArrayLike, strength: dict[str, float],
            cfg: TrackConfig = TrackConfig(), *, reach_px: float = 3.0,
-           ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float,
+           ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
                       float] | None:
     """One known book measured again in a new frame.
 
@@ -126,17 +126,17 @@ def follow(grads: dict[str, Gradients], corners: dict[str, NDArray[np.float64]],
 
     Returns
     -------
-    (P, left, right, error, quality) or None
+    (P, left, right, error) or None
         The cover's corners in the world (4, 3), metres (a rectangle parallel to the desk
         where one fits); their projections into both ideal images (4, 2) each; the root
-        mean square distance of those projected sides to the refit ones, over both images'
-        eight sides (px); the mean edge evidence of the four refit sides in the worse
-        image (:mod:`rovis.agreement`'s measures, from the sides this frame refit: one it
-        could not refit counts ``reach_px``). None
-        where the book is not where it was: a corner whose sides no longer meet near it,
-        or a side that lost its edge.
+        mean square distance of those projected sides to the sides refit in this frame,
+        over both images' eight sides (px; a side it could not refit counts ``reach_px``):
+        :mod:`rovis.agreement`'s error, from edges looked for within ``cfg.window_px`` of
+        where the sides were rather than ``reach_px`` of the projected sides. None where
+        the book is not where it was: a corner whose sides no longer meet near it, or a
+        side that lost its edge.
     """
-    refit, fitted, support = {}, {}, []
+    refit, fitted = {}, {}
     for cam in ("left", "right"):
         got = refit_quad(grads[cam], np.asarray(corners[cam], dtype=np.float64), cfg.window_px)
         if got is None:
@@ -146,7 +146,6 @@ def follow(grads: dict[str, Gradients], corners: dict[str, NDArray[np.float64]],
         if np.any(now < cfg.keep * np.asarray(evidence[cam])):
             return None  # a side lost its edge: the book moved or is gone
         refit[cam] = c
-        support.append(float(now.mean()))
     P0 = geometry.triangulate_dlt(Q_L, Q_R, refit["left"], refit["right"])
     if not np.all(np.isfinite(P0)):
         return None
@@ -164,7 +163,7 @@ def follow(grads: dict[str, Gradients], corners: dict[str, NDArray[np.float64]],
                                    reach_px)
                           for cam, model in (("left", left), ("right", right))])
     off = np.minimum(off, reach_px)
-    return P, left, right, float(np.sqrt(np.mean(off ** 2))), min(support)
+    return P, left, right, float(np.sqrt(np.mean(off ** 2)))
 
 
 def _sides(quad: NDArray[np.float64]) -> list[Line]:
