@@ -385,6 +385,27 @@ def test_linear_gradients_put_a_gamma_encoded_edge_back_in_place():
         linear_gradients(img, gamma=0.0)
 
 
+def test_a_side_fitted_again_on_the_same_gradients_is_the_first_fit():
+    from dataclasses import replace
+
+    from rovis.segment.lines import _refine_segment, refine_segment
+    img, truth = drawn_scene()
+    grad = gradients(img)
+    a, b = truth[0][0] + [0.7, -0.4], truth[0][1] + [0.3, 0.6]
+    first = refine_segment(grad, a, b)
+    assert first is not None and len(grad.fits) == 1
+    first[0][:] = -1.0  # a caller's change to its result reaches no later fit
+    again = refine_segment(grad, a.copy(), b.copy())
+    fresh = _refine_segment(grad, a, b, 3.0, 4.0, 2)
+    assert np.array_equal(again[0], fresh[0]) and np.array_equal(again[1], fresh[1])
+    assert len(grad.fits) == 1
+    refine_segment(grad, a, b, half_width=1.5)  # other settings: another fit
+    assert len(grad.fits) == 2
+    # new gradients, e.g. with an edge masked out, keep none of the old fits
+    masked = replace(grad, dx=np.zeros_like(grad.dx), dy=np.zeros_like(grad.dy))
+    assert masked.fits == {} and refine_segment(masked, a, b) is None
+
+
 def test_refining_both_ways_at_once_gives_each_way_s_corners():
     from rovis.segment.boundary import refine_quad, refine_quad_both
     img, truth = drawn_scene()

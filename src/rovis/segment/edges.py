@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 import cv2
 import numpy as np
@@ -27,6 +28,12 @@ class Gradients:
         Where the image shows the scene (non-zero), if not everywhere: an ideal image grown
         to the raw field of view (:class:`rovis.undistort.IdealView`) is black beyond it, and
         a side running there is out of view, as beyond the image's edge (None: all of it).
+    fits : dict
+        The sides :func:`rovis.segment.lines.refine_segment` fitted on these gradients,
+        by their end points and settings: a frame fits the same side of many candidate
+        quads again. Not an argument: each instance (and each :func:`dataclasses.replace`
+        of one) starts empty, so the arrays must not be changed in place once sides are
+        fitted on them.
     """
 
     dx: NDArray[np.int16]
@@ -34,6 +41,7 @@ class Gradients:
     mask: NDArray[np.uint8] | None
     box: tuple[int, int, int, int]
     seen: NDArray[np.uint8] | None = None
+    fits: dict[Any, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @property
     def shape(self) -> tuple[int, int]:
