@@ -492,7 +492,7 @@ def refine_segment(grad: Gradients, p_a: NDArray[np.float64], p_b: NDArray[np.fl
     or None when too few edge points support the side.
     """
     p_a, p_b = np.asarray(p_a, dtype=np.float64), np.asarray(p_b, dtype=np.float64)
-    # a frame fits one side of many candidate quads more than once (one in seven fits of
+    # a frame fits one side of many candidate quads more than once (one in eight fits of
     # rovis bench's frames): the first fit is kept on the gradients (Gradients.fits)
     key = (p_a.tobytes(), p_b.tobytes(), half_width, trim, iterations)
     if key not in grad.fits:
