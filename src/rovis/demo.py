@@ -137,12 +137,14 @@ def _report(scene: Any, result: FrameResult, books: list[dict[str, Any]],
         "",
         f"found {len(result.objects)} book{'s' if len(result.objects) != 1 else ''} "
         f"({len(matches)} of the {len(books)} true books) in {seconds:.2f} s; yaw error: long "
-        "side, modulo 180°",
+        "side, modulo 180°; quality:",
+        "how much of the cover's outline shows an edge, in the worse image (0-1; README, "
+        "Conventions)",
     ]
     if result.objects:
         truth_of = dict(matches)
         left = (f"{'id':>3}  {'x [m]':>6} {'y [m]':>6} {'z [m]':>6}  {'yaw [°]':>7}  "
-                f"{'L x W [mm]':>10}  {'h [mm]':>6}  ")
+                f"{'L x W [mm]':>10}  {'h [mm]':>6}  {'quality':>7}  ")
         right = (f"  {'truth':<4} {'X [mm]':>6} {'Y [mm]':>6} {'Z [mm]':>6}  {'yaw [°]':>7}  "
                  f"{'L [mm]':>6} {'W [mm]':>6} {'h [mm]':>6}  found by")
         lines += ["", f"{'detected':<{len(left)}}|  error against the true book",
@@ -151,7 +153,7 @@ def _report(scene: Any, result: FrameResult, books: list[dict[str, Any]],
             c, s = obj.pose.center, obj.pose.size * 1000.0
             h = f"{s[2]:6.1f}" if np.isfinite(s[2]) else "     -"
             row = (f"{obj.id:>3}  {c[0]:6.3f} {c[1]:6.3f} {c[2]:6.3f}  {obj.pose.yaw_deg:7.1f}"
-                   f"  {s[0]:4.0f} x{s[1]:4.0f}  {h}  |")
+                   f"  {s[0]:4.0f} x{s[1]:4.0f}  {h}  {obj.quality:7.2f}  |")
             if k in truth_of:
                 e = {key: v * (1e3 if key != "yaw" else 1.0)
                      for key, v in book_errors(obj, books[truth_of[k]]).items()}
