@@ -385,22 +385,33 @@ def test_linear_gradients_put_a_gamma_encoded_edge_back_in_place():
         linear_gradients(img, gamma=0.0)
 
 
-def test_a_side_fitted_again_on_the_same_gradients_is_the_first_fit():
+def test_a_side_fitted_again_on_the_same_gradients_is_the_first_fit(monkeypatch):
     from dataclasses import replace
 
+    from rovis.segment import lines
     from rovis.segment.lines import _refine_segment, refine_segment
     img, truth = drawn_scene()
     grad = gradients(img)
     a, b = truth[0][0] + [0.7, -0.4], truth[0][1] + [0.3, 0.6]
+    c, d = truth[1][1] + [-0.5, 0.2], truth[1][2] + [0.4, -0.3]  # another cover's side
+    calls = []
+    monkeypatch.setattr(lines, "_refine_segment",
+                        lambda *args: calls.append(args[1:]) or _refine_segment(*args))
     first = refine_segment(grad, a, b)
-    assert first is not None and len(grad.fits) == 1
+    assert first is not None and len(calls) == 1
     first[0][:] = -1.0  # a caller's change to its result reaches no later fit
     again = refine_segment(grad, a.copy(), b.copy())
-    fresh = _refine_segment(grad, a, b, 3.0, 4.0, 2)
-    assert np.array_equal(again[0], fresh[0]) and np.array_equal(again[1], fresh[1])
-    assert len(grad.fits) == 1
-    refine_segment(grad, a, b, half_width=1.5)  # other settings: another fit
-    assert len(grad.fits) == 2
+    assert len(calls) == 1  # looked up, not fitted again
+    for (p, q, *settings), got in (((a, b, 3.0, 4.0, 2), again),
+                                   ((c, d, 3.0, 4.0, 2), refine_segment(grad, c, d)),
+                                   ((a, b, 1.5, 4.0, 2), refine_segment(grad, a, b,
+                                                                       half_width=1.5)),
+                                   ((a, b, 3.0, 2.0, 2), refine_segment(grad, a, b, trim=2.0)),
+                                   ((a, b, 3.0, 4.0, 1), refine_segment(grad, a, b,
+                                                                       iterations=1))):
+        fresh = _refine_segment(grad, p, q, *settings)
+        assert np.array_equal(got[0], fresh[0]) and np.array_equal(got[1], fresh[1])
+    assert len(calls) == 5 and len(grad.fits) == 5  # each other side or setting: a fit
     # new gradients, e.g. with an edge masked out, keep none of the old fits
     masked = replace(grad, dx=np.zeros_like(grad.dx), dy=np.zeros_like(grad.dy))
     assert masked.fits == {} and refine_segment(masked, a, b) is None

@@ -137,9 +137,9 @@ def _report(scene: Any, result: FrameResult, books: list[dict[str, Any]],
         "",
         f"found {len(result.objects)} book{'s' if len(result.objects) != 1 else ''} "
         f"({len(matches)} of the {len(books)} true books) in {seconds:.2f} s; yaw error: long "
-        "side, modulo 180°; quality:",
-        "how much of the cover's outline shows an edge, in the worse image (0-1; README, "
-        "Conventions)",
+        "side, modulo 180°",
+        "quality: how much of the cover's outline shows an edge, in the worse image (0-1; "
+        "README, Conventions)",
     ]
     if result.objects:
         truth_of = dict(matches)
