@@ -113,12 +113,19 @@ def test_summary_statistics_and_recall_of_well_visible_books():
     assert ev.lux_band(10.0) == "<15 lx" and ev.lux_band(None) is None
 
 
-def test_errors_and_false_positives_by_how_each_book_was_found():
+def _close_off_and_false() -> tuple[list[Book], list[Book]]:
+    """Two true books, and three detections: one 1 mm off, one 2 cm off (past the grasp
+    tolerance), one a false positive."""
     books = [_book([0.1, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),
              _book([0.4, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03])]
     dets = [_book([0.101, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),
-            _book([0.42, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),  # 2 cm off: past the tolerance
-            _book([0.8, 0.5, 0.03], 0.0, [0.2, 0.15, 0.03])]  # a false positive
+            _book([0.42, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),
+            _book([0.8, 0.5, 0.03], 0.0, [0.2, 0.15, 0.03])]
+    return books, dets
+
+
+def test_errors_and_false_positives_by_how_each_book_was_found():
+    books, dets = _close_off_and_false()
     score = {**score_books(books, dets), "sources": ["segmentation", "height map", "height map"]}
     record = {"books": [{"visible": True}] * 2, "methods": {"closed": score}}
     by = ev.source_breakdown([record, record], ["closed"])["closed"]
@@ -136,11 +143,7 @@ def test_errors_and_false_positives_by_how_each_book_was_found():
 
 
 def test_detections_counted_by_how_well_they_agree_with_the_images():
-    books = [_book([0.1, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),
-             _book([0.4, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03])]
-    dets = [_book([0.101, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),
-            _book([0.42, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),  # 2 cm off: past the tolerance
-            _book([0.8, 0.5, 0.03], 0.0, [0.2, 0.15, 0.03])]  # a false positive
+    books, dets = _close_off_and_false()
     score = {**score_books(books, dets), "quality": [1.0, 0.85, 0.95],
              "reprojection_error_px": [0.2, 1.0, 2.5]}
     record = {"books": [{"visible": True}] * 2, "methods": {"closed": score}}

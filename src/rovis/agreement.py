@@ -33,12 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from rovis.segment.boundary import side_evidence
+from rovis.segment.boundary import Fit, side_evidence
 from rovis.segment.edges import Gradients
 from rovis.segment.lines import refine_segment
-
-Line = tuple[NDArray[np.float64], NDArray[np.float64]]  # a point and a unit direction
-
 
 @dataclass(frozen=True)
 class AgreementConfig:
@@ -63,7 +60,7 @@ class AgreementConfig:
             raise ValueError(f"agreement: evidence and reach_px must be positive, got {self}")
 
 
-def side_offsets(quad: NDArray[np.float64], lines: Sequence[Line | None]) -> NDArray[np.float64]:
+def side_offsets(quad: NDArray[np.float64], lines: Sequence[Fit | None]) -> NDArray[np.float64]:
     """Per side of a quad, the root mean square distance along it to a line.
 
     The distance to a line changes linearly along a segment, from d_a at one end to d_b at

@@ -18,7 +18,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from rovis import geometry
-from rovis.agreement import Line, side_offsets
+from rovis.agreement import side_offsets
+from rovis.extent import _side_lines
 from rovis.segment.boundary import side_evidence
 from rovis.segment.edges import Gradients
 from rovis.segment.lines import intersect, refine_segment
@@ -159,20 +160,11 @@ def follow(grads: dict[str, Gradients], corners: dict[str, NDArray[np.float64]],
         # completed off its edge): its corners triangulated one by one, as detected
         P = P0
     left, right = geometry.project(Q_L, P), geometry.project(Q_R, P)
-    off = np.concatenate([np.where(fitted[cam], side_offsets(model, _sides(refit[cam])),
-                                   reach_px)
+    lines = _side_lines(refit)
+    off = np.concatenate([np.where(fitted[cam], side_offsets(model, lines[cam]), reach_px)
                           for cam, model in (("left", left), ("right", right))])
     off = np.minimum(off, reach_px)
     return P, left, right, float(np.sqrt(np.mean(off ** 2)))
-
-
-def _sides(quad: NDArray[np.float64]) -> list[Line]:
-    """The lines through a quad's (4, 2) neighbouring corners, side s from corner s."""
-    out = []
-    for s in range(4):
-        d = quad[(s + 1) % 4] - quad[s]
-        out.append((quad[s], d / max(float(np.linalg.norm(d)), 1e-12)))
-    return out
 
 
 def _fits(P: NDArray[np.float64], Q_L: ArrayLike, Q_R: ArrayLike,
