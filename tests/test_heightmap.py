@@ -9,13 +9,16 @@ from types import SimpleNamespace
 import cv2
 import numpy as np
 import pytest
+from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from rovis import geometry
 from rovis.calib import StereoRig
 from rovis.heightmap import (HeightMap, HeightMapConfig, Rectification, dense_height_map,
-                             height_map, raised_covers, smooth_height_map, sweeps_confirm)
+                             height_map, raised_covers, smooth_height_map, snap_sides,
+                             sweeps_confirm)
 from rovis.pipeline import DetectConfig, Detector, _footprints, with_settings
+from rovis.segment.edges import gradients
 from rovis.sweep import high_pass
 from rovis.synth import render, sample_scene
 from rovis.synth.dataset import dataset_rig
@@ -246,6 +249,52 @@ def test_the_sweeps_back_a_rectangle_only_where_they_read_it_off_the_desk():
     assert backed(fifth, map_of(0.02)) and not backed(map_of(0.02), map_of(0.0))
 
 
+def test_a_side_snaps_out_over_no_strip_the_maps_read_at_another_height():
+    # two cameras 1 m above the desk looking straight down, 10 cm apart along x
+    Q = {"left": np.array([[1000.0, 0, -320, 320], [0, -1000.0, -240, 240], [0, 0, -1.0, 1.0]]),
+         "right": np.array([[1000.0, 0, -320, 220], [0, -1000.0, -240, 240], [0, 0, -1.0, 1.0]])}
+
+    def box(x0: float, x1: float, z: float) -> NDArray[np.float64]:  # 10 cm deep in y
+        return np.array([[x0, -0.05, z], [x1, -0.05, z], [x1, 0.05, z], [x0, 0.05, z]])
+
+    # a plain cover 2 cm high ending at x = 2 cm, a grey level darker than the lower book
+    # (5 mm) it lies against, whose print has a dark band 2-4 cm beyond the cover's end
+    cover, lower, band = box(-0.1, 0.02, 0.02), box(0.02, 0.12, 0.005), box(0.04, 0.06, 0.005)
+    grads, heights = {}, np.full((480, 640), np.nan, np.float32)
+    for cam in Q:
+        img = np.full((480, 640), 110, np.uint8)
+        for P, grey in ((lower, 104), (band, 40), (cover, 100)):
+            corners = np.round(geometry.project(Q[cam], P) * 16).astype(np.int32)
+            cv2.fillConvexPoly(img, corners, grey, lineType=cv2.LINE_AA, shift=4)
+            if cam == "left":  # the map the sweeps would make: each surface's height
+                cv2.fillConvexPoly(heights, np.round(geometry.project(Q[cam], P)).astype(
+                    np.int32), P[0, 2] if grey != 40 else lower[0, 2])
+        grads[cam] = gradients(cv2.GaussianBlur(img, (0, 0), 1.0))
+    hm = HeightMap(heights, np.arange(0.0, 0.075, 0.003), (0, 0, 640, 480))
+    start = box(-0.1, 0.015, 0.02)  # its side 1, at x = 1.5 cm, 5 mm short of the end
+
+    def end(**kw) -> float:  # metres: where side 1 lies once snapped
+        return float(snap_sides(start, Q, grads, reach=0.03, inward=0.02, sides=(1,),
+                                **kw)[1, 0])
+
+    assert end() > 0.035  # on the band
+    assert abs(end(maps=[(hm, Q["left"])], height=0.02) - 0.02) < 0.0015  # on the cover's end
+    # the strip read near the cover's height (within strip_tol, or within half the
+    # height: 12 mm where the cover is 20), or too sparsely: no bound
+    assert end(maps=[(hm, Q["left"])], height=0.02, strip_tol=0.02) > 0.035
+    halfway = HeightMap(np.where(heights == np.float32(0.005), np.float32(0.012), heights),
+                        hm.heights, hm.box)
+    assert end(maps=[(halfway, Q["left"])], height=0.02) > 0.035
+    assert abs(end(maps=[(halfway, Q["left"])], height=0.03) - 0.02) < 0.0015
+    with pytest.raises(ValueError, match="height"):
+        end(maps=[(hm, Q["left"])])
+    rows = np.arange(480)[:, None]  # a row in four read: about 6 of a side's 24 samples
+    sparse = HeightMap(np.where(rows % 4 == 0, heights, np.nan).astype(np.float32),
+                       hm.heights, hm.box)
+    assert end(maps=[(sparse, Q["left"])], height=0.02) > 0.035
+    assert abs(end(maps=[(sparse, Q["left"])], height=0.02, strip_read=0.2) - 0.02) < 0.0015
+
+
 def test_erosion_shrinks_a_patch_by_its_pixels():
     # a flat patch 200 × 120 px at 2 cm in a synthetic map, seen straight down at 1 m
     # a camera 1 m above the desk looking straight down: u = 320 + 1000 x / (1 - z), ...
@@ -427,6 +476,10 @@ def test_bad_settings_are_refused():
         HeightMapConfig(dense_slab=0.0)
     with pytest.raises(ValueError, match="heightmap"):
         HeightMapConfig(dense_min_read=-0.1)
+    with pytest.raises(ValueError, match="dense_snap_tol positive"):
+        HeightMapConfig(dense_snap_tol=0.0)
+    with pytest.raises(ValueError, match="dense_snap_read in"):
+        HeightMapConfig(dense_snap_read=0.0)
 
 
 def test_the_pipeline_finds_a_book_only_the_dense_map_raises():

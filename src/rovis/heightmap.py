@@ -21,6 +21,7 @@ both images, refines to their edges and puts through the pose checks like any ot
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import cv2
@@ -58,7 +59,11 @@ class HeightMapConfig:
     matching block (odd, pixels); slabs from ``dense_raised`` up, each ± ``dense_slab``, its
     patches eroded by ``dense_erode_px``; a rectangle is taken where one of the two sweeps
     reads heights over ``dense_min_read`` of its inner part or more and neither reads the
-    desk over more than ``dense_max_desk`` of its readings (:func:`sweeps_confirm`).
+    desk over more than ``dense_max_desk`` of its readings (:func:`sweeps_confirm`); its
+    sides move outward onto an edge over no strip where the sweeps read, on at least
+    ``dense_snap_read`` of the strip's samples, a height below the cover's by more than
+    ``dense_snap_tol`` and half its height (:func:`snap_sides`: a lower neighbour the
+    disparity map ran on over).
 
     ``taken_px``: late, the sweeps are cut again without the found covers' pixels and those
     within this many of the map's pixels around them (on the half-resolution smooth map,
@@ -92,7 +97,9 @@ class HeightMapConfig:
     dense_slab: float = 0.006
     dense_erode_px: int = 2
     dense_max_desk: float = 0.2
-    dense_min_read: float = 0.3
+    dense_min_read: float = 0.1
+    dense_snap_tol: float = 0.006
+    dense_snap_read: float = 0.5
     taken_px: int = 4
     taken_overlap: float = 0.15
 
@@ -104,14 +111,15 @@ class HeightMapConfig:
                 and self.dense_block_px >= 3 and self.dense_block_px % 2 == 1
                 and self.dense_slab > 0 and self.dense_erode_px >= 0
                 and 0.0 <= self.dense_max_desk <= 1.0 and 0.0 <= self.dense_min_read <= 1.0
+                and self.dense_snap_tol > 0 and 0.0 < self.dense_snap_read <= 1.0
                 and 0.0 <= self.taken_overlap <= 1.0 and isinstance(self.taken_px, int)):
             raise ValueError("heightmap: step and slab must be positive, max_height above "
                              "min_height by more than a step, window_px and "
                              "smooth_window_px odd and >= 3, smooth_sigma_px positive, "
                              "smooth_erode_px >= 0, dense_block_px odd and >= 3, "
                              "dense_slab positive, dense_erode_px >= 0, dense_max_desk, "
-                             f"dense_min_read and taken_overlap in [0, 1], taken_px an "
-                             f"int, got {self}")
+                             "dense_min_read and taken_overlap in [0, 1], dense_snap_tol "
+                             f"positive, dense_snap_read in (0, 1], taken_px an int, got {self}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -491,6 +499,27 @@ def sweeps_confirm(P: ArrayLike, maps: list[tuple[HeightMap, NDArray[np.float64]
     return read_enough
 
 
+def read_heights(hm: HeightMap, Q: NDArray[np.float64],
+                 pts: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The map's height (N,) at world points ``pts`` (N, 3) seen through ``Q`` (3, 4), at
+    the nearest pixel; NaN outside the map or where it has none."""
+    uv = np.round(geometry.project(Q, pts)).astype(int)
+    h, w = hm.height.shape
+    inside = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+    z = np.full(len(uv), np.nan)
+    z[inside] = hm.height[uv[inside, 1], uv[inside, 0]]
+    return z
+
+
+def row_medians(rows: NDArray[np.float64], count: NDArray[np.intp]) -> NDArray[np.float64]:
+    """Each row's median over its values that are not NaN, ``count`` of them (K,) in rows
+    (K, M): as np.median of those values (np.sort puts NaN last; np.nanmedian is several
+    times slower on short rows)."""
+    ordered = np.sort(rows, axis=1)
+    r = np.arange(len(rows))
+    return 0.5 * (ordered[r, (count - 1) // 2] + ordered[r, count // 2])
+
+
 def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
                   side_range: tuple[float, float] = (0.05, 0.45),
                   cfg: HeightMapConfig = HeightMapConfig(), erode_px: int = 0,
@@ -658,16 +687,30 @@ def _outline_fill(uv: NDArray[np.float64], rect: NDArray[np.float64], band: floa
 
 def snap_sides(P: ArrayLike, Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients], *,
                reach: float = 0.012, inward: float = 0.012, step: float = 0.001,
-               samples: int = 24, sides: tuple[int, ...] = (0, 1, 2, 3)) -> NDArray[np.float64]:
+               samples: int = 24, sides: tuple[int, ...] = (0, 1, 2, 3),
+               maps: Sequence[tuple[HeightMap, NDArray[np.float64]]] = (),
+               height: float | None = None, strip_tol: float = 0.006,
+               strip_read: float = 0.5) -> NDArray[np.float64]:
     """A cover rectangle's sides moved, in its plane, onto the edge both images show.
 
     Each side of ``P`` (4, 3) is slid along its outward normal within the cover's plane by
-    up to ``reach`` metres outward and ``inward`` metres inward; projected into each image, it scores the median
-    gradient across it there, and the offset whose weaker image scores highest wins. An
-    edge at another height (a page block's foot on the desk, a neighbour's cover) lies
-    elsewhere on this plane in the two images and scores in one of them only. A side facing
-    the camera takes the innermost strong edge: beyond it lies the page block, whose foot
-    often runs along the baseline, where stereo cannot tell it from the cover's edge.
+    up to ``reach`` metres outward and ``inward`` metres inward; projected into each image,
+    it scores the median gradient across it there, and the offset whose weaker image
+    scores highest wins. An edge at another height (a page block's foot on the desk, a
+    neighbour's cover) lies elsewhere on this plane in the two images and scores in one of
+    them only. A side facing the camera takes the innermost strong edge: beyond it lies
+    the page block, whose foot often runs along the baseline, where stereo cannot tell it
+    from the cover's edge.
+
+    With ``maps`` and ``height``, a side moves outward over no strip the maps read well
+    below the cover: the first row of samples beyond the side where they read, on
+    ``strip_read`` of its samples or more, a median below ``height`` by more than
+    ``strip_tol`` and more than half ``height`` (a lower neighbour, or the desk) bounds its
+    move (the rows at and beyond it are not asked). A plain cover's own edge is faint, and
+    a lower neighbour's print beyond it still scores in both images within a few
+    millimetres of the cover's height (:func:`dense_height_map`'s rectangles run on over
+    such a neighbour). Near a cover's edge the sweeps' windows straddle it and read
+    heights between the two surfaces: hence half the height, not ``strip_tol`` alone.
 
     Parameters
     ----------
@@ -679,6 +722,13 @@ def snap_sides(P: ArrayLike, Q: dict[str, NDArray[np.float64]], grads: dict[str,
         Both ideal images' gradients.
     sides : tuple of int
         The sides to move (side s from corner s to s + 1); the others stay.
+    maps : sequence of (HeightMap, ndarray (3, 4))
+        Height maps with the world → pixel projection of the image each is over; a
+        sample takes the height of the first map that has one there.
+    height : float, optional
+        The cover's height above the desk, metres (needed with ``maps``).
+    strip_tol, strip_read : float
+        Metres, and a share of a row's samples (see above).
 
     Returns
     -------
@@ -686,6 +736,8 @@ def snap_sides(P: ArrayLike, Q: dict[str, NDArray[np.float64]], grads: dict[str,
         The moved rectangle's corners (the neighbouring sides' lines stay; the corners are
         where the moved sides meet them).
     """
+    if maps and height is None:
+        raise ValueError("snap_sides: maps need the cover's height")
     P = np.asarray(P, dtype=np.float64).reshape(4, 3).copy()
     offsets = np.arange(-inward, reach + 1e-9, step)
     u = np.linspace(0.15, 0.85, samples)
@@ -717,6 +769,10 @@ def snap_sides(P: ArrayLike, Q: dict[str, NDArray[np.float64]], grads: dict[str,
             score = np.median(np.abs(gx * n_img[:, None, 0] + gy * n_img[:, None, 1]), axis=1)
             worst = score if worst is None else np.minimum(worst, score)
         assert worst is not None
+        if maps:
+            bound = _strip_bound(moved, offsets, maps, height, strip_tol, strip_read)
+            if bound is not None:
+                worst = np.where(np.arange(len(offsets)) < bound, worst, -np.inf)
         best = int(np.argmax(worst))
         if out @ (camera - 0.5 * (a + b)) > 0:
             # a side facing the camera shows the page block beyond it, whose foot is an
@@ -729,3 +785,22 @@ def snap_sides(P: ArrayLike, Q: dict[str, NDArray[np.float64]], grads: dict[str,
     # each side's line moved by its offset; corner s joins side s - 1 and side s
     return np.array([P[s] + moves[s] * outward[s] + moves[s - 1] * outward[s - 1]
                      for s in range(4)])
+
+
+def _strip_bound(moved: NDArray[np.float64], offsets: NDArray[np.float64],
+                 maps: Sequence[tuple[HeightMap, NDArray[np.float64]]], height: float,
+                 tol: float, min_read: float) -> int | None:
+    """The first row of ``moved`` (O, S, 3), a side's samples at each of ``offsets`` (O,)
+    (metres, outward positive), beyond the side (offset > 0) that ``maps`` read, on
+    ``min_read`` of its S samples or more, at a median below ``height`` by more than
+    ``tol`` and more than half ``height``; None where no row does."""
+    n_rows, n = moved.shape[:2]
+    z = np.full(n_rows * n, np.nan)
+    for hm, Q in maps:  # each sample from the first map with a height there
+        z = np.where(np.isnan(z), read_heights(hm, Q, moved.reshape(-1, 3)), z)
+    z = z.reshape(n_rows, n)
+    count = np.count_nonzero(np.isfinite(z), axis=1)
+    lower = row_medians(z, count) < height - max(tol, 0.5 * height)
+    beyond = np.arange(n_rows) > np.argmin(np.abs(offsets))  # (np.arange's 0 is not exact)
+    other = beyond & (count >= min_read * n) & lower
+    return int(np.flatnonzero(other)[0]) if other.any() else None

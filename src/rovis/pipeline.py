@@ -1864,13 +1864,17 @@ class Detector:
                          maps: list[tuple[HeightMap, NDArray[np.float64], HeightMapConfig, int]],
                          refuse: Callable[[NDArray[np.float64]], bool] | None = None,
                          without_found: bool = False,
+                         strip_maps: Sequence[tuple[HeightMap, NDArray[np.float64]]] = (),
                          ) -> list[tuple[Pair, BookDetection]]:
         """Books where no book is yet, from the covers that stand out of the desk in a
         height map of the workspace (:mod:`rovis.heightmap`); ``refuse``, if given, turns
         down a rectangle (world corners, (4, 3)) before anything is done with it;
         ``without_found``: the maps cut without the pixels of ``found``'s covers
         (``HeightMapConfig.taken_px`` beyond them), each rectangle tried unsnapped too where
-        the snapped one fails, and a book over a found one (``taken_overlap``) not taken.
+        the snapped one fails, and a book over a found one (``taken_overlap``) not taken;
+        ``strip_maps``: other maps (with their projections) that bound each side's snap
+        outward where they read a strip beyond it at another height
+        (``HeightMapConfig.dense_snap_tol``, :func:`rovis.heightmap.snap_sides`).
 
         Each rectangle's height is refined by its print (a fine sweep), its sides are moved
         onto the edges both images show (:func:`rovis.heightmap.snap_sides`), and the
@@ -1920,7 +1924,9 @@ class Detector:
                 P = on_plane(rig.Q_L, left, desk_plane, height)
             pair, book = None, None
             snapped = snap_sides(P, Q, grads, reach=cfg.heightmap.snap_reach,
-                                 inward=cfg.heightmap.snap_inward)
+                                 inward=cfg.heightmap.snap_inward, maps=strip_maps,
+                                 height=height, strip_tol=cfg.heightmap.dense_snap_tol,
+                                 strip_read=cfg.heightmap.dense_snap_read)
             # the rest of a patch cut again (without_found) ends at its neighbour's edge, and
             # a faint side of it may snap in onto its print, or out over that neighbour: the
             # rectangle unsnapped where the snapped one fails
@@ -1957,6 +1963,9 @@ class Detector:
         That map's smoothing carries a book's height on over a faint desk beside it and
         into a pocket of desk between books: a rectangle the plane sweeps (``maps``) read
         nothing over, or the desk, is no cover (:func:`rovis.heightmap.sweeps_confirm`).
+        It also carries a plain cover's height on over a lower neighbour, whose print
+        beyond the cover's faint edge draws the side's snap: the sweeps, which read that
+        print at its own height, bound it (``strip_maps``).
         Its heights are a few millimetres noisier than the sweeps', so the later steps
         that read heights (``trim``) do not read it.
         """
@@ -1967,6 +1976,7 @@ class Detector:
         sweeps = [(hm, Q) for hm, Q, _, _ in maps]
         return self._from_height_map(rig, grads, found, desk_plane, texture,
                                      [(dense, Q_rect, dense_cfg, cfg.dense_erode_px)],
+                                     strip_maps=sweeps,
                                      refuse=lambda P: not sweeps_confirm(
                                          P, sweeps, max_desk=cfg.dense_max_desk,
                                          min_read=cfg.dense_min_read))

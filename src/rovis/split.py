@@ -51,10 +51,10 @@ from numpy.typing import NDArray
 
 from rovis import geometry
 from rovis.extent import _edge_height, _unit
+from rovis.heightmap import row_medians
 from rovis.segment.edges import Gradients
 from rovis.segment.lines import intersect, refine_segment
 from rovis.stereo import _point_segment_distance, flat_rectangle
-from rovis.trim import row_medians
 
 
 @dataclass(frozen=True)

@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 from rovis import geometry
 from rovis.extent import (ExtentConfig, _block_shows, _drop, _edge_height, _hits, _moved,
                           _side_scores, _unit)
-from rovis.heightmap import HeightMap
+from rovis.heightmap import HeightMap, read_heights, row_medians
 from rovis.segment.edges import Gradients
 from rovis.sweep import Sweep, sweep_heights
 
@@ -237,33 +237,12 @@ def height_profile(P: NDArray[np.float64], axis: int,
     pts = origin + t[:, None, None] * along + g[None, :, None] * across  # (S, G, 3)
     out = np.full(n_strips, np.nan)
     for hm, Q in maps:
-        z = _read(hm, Q, pts.reshape(-1, 3)).reshape(n_strips, cfg.samples)
+        z = read_heights(hm, Q, pts.reshape(-1, 3)).reshape(n_strips, cfg.samples)
         count = np.count_nonzero(np.isfinite(z), axis=1)
         enough = np.flatnonzero(np.isnan(out) & (count >= cfg.min_samples))
         if len(enough):
             out[enough] = row_medians(z[enough], count[enough])
     return out
-
-
-def row_medians(rows: NDArray[np.float64], count: NDArray[np.intp]) -> NDArray[np.float64]:
-    """Each row's median over its values that are not NaN, ``count`` of them (K,) in rows
-    (K, M): as np.median of those values (np.sort puts NaN last; np.nanmedian is several
-    times slower on short rows)."""
-    ordered = np.sort(rows, axis=1)
-    r = np.arange(len(rows))
-    return 0.5 * (ordered[r, (count - 1) // 2] + ordered[r, count // 2])
-
-
-def _read(hm: HeightMap, Q: NDArray[np.float64],
-          pts: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The map's height (N,) at world points ``pts`` (N, 3) seen through ``Q`` (3, 4), at
-    the nearest pixel; NaN outside the map or where it has none."""
-    uv = np.round(geometry.project(Q, pts)).astype(int)
-    h, w = hm.height.shape
-    inside = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
-    z = np.full(len(uv), np.nan)
-    z[inside] = hm.height[uv[inside, 1], uv[inside, 0]]
-    return z
 
 
 def map_height(P: NDArray[np.float64], maps: list[tuple[HeightMap, NDArray[np.float64]]],
@@ -294,7 +273,7 @@ def map_height(P: NDArray[np.float64], maps: list[tuple[HeightMap, NDArray[np.fl
     s, r = np.meshgrid(g, g)
     pts = P[0] + s.reshape(-1, 1) * (P[1] - P[0]) + r.reshape(-1, 1) * (P[3] - P[0])
     for hm, Q in maps:
-        z = _read(hm, Q, pts)
+        z = read_heights(hm, Q, pts)
         z = z[np.isfinite(z)]
         if len(z) and len(z) >= cfg.min_height_share * len(pts):
             mid = float(np.median(z))
