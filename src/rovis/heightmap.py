@@ -769,7 +769,7 @@ def snap_sides(P: ArrayLike, Q: dict[str, NDArray[np.float64]], grads: dict[str,
             score = np.median(np.abs(gx * n_img[:, None, 0] + gy * n_img[:, None, 1]), axis=1)
             worst = score if worst is None else np.minimum(worst, score)
         assert worst is not None
-        if maps:
+        if maps and height is not None:  # (None with maps was refused above)
             bound = _strip_bound(moved, offsets, maps, height, strip_tol, strip_read)
             if bound is not None:
                 worst = np.where(np.arange(len(offsets)) < bound, worst, -np.inf)

@@ -1873,7 +1873,7 @@ class Detector:
         (``HeightMapConfig.taken_px`` beyond them), each rectangle tried unsnapped too where
         the snapped one fails, and a book over a found one (``taken_overlap``) not taken;
         ``strip_maps``: other maps (with their projections) that bound each side's snap
-        outward where they read a strip beyond it at another height
+        outward where they read a strip beyond it well below the cover
         (``HeightMapConfig.dense_snap_tol``, :func:`rovis.heightmap.snap_sides`).
 
         Each rectangle's height is refined by its print (a fine sweep), its sides are moved
