@@ -249,7 +249,7 @@ def test_the_sweeps_back_a_rectangle_only_where_they_read_it_off_the_desk():
     assert backed(fifth, map_of(0.02)) and not backed(map_of(0.02), map_of(0.0))
 
 
-def test_a_side_snaps_out_over_no_strip_the_maps_read_at_another_height():
+def test_a_side_snaps_out_over_no_strip_the_maps_read_well_below_the_cover():
     # two cameras 1 m above the desk looking straight down, 10 cm apart along x
     Q = {"left": np.array([[1000.0, 0, -320, 320], [0, -1000.0, -240, 240], [0, 0, -1.0, 1.0]]),
          "right": np.array([[1000.0, 0, -320, 220], [0, -1000.0, -240, 240], [0, 0, -1.0, 1.0]])}
@@ -257,8 +257,8 @@ def test_a_side_snaps_out_over_no_strip_the_maps_read_at_another_height():
     def box(x0: float, x1: float, z: float) -> NDArray[np.float64]:  # 10 cm deep in y
         return np.array([[x0, -0.05, z], [x1, -0.05, z], [x1, 0.05, z], [x0, 0.05, z]])
 
-    # a plain cover 2 cm high ending at x = 2 cm, a grey level darker than the lower book
-    # (5 mm) it lies against, whose print has a dark band 2-4 cm beyond the cover's end
+    # a plain cover 2 cm high ending at x = 2 cm, four grey levels darker than the lower
+    # book (5 mm) it lies against, whose print has a dark band 2-4 cm beyond the cover's end
     cover, lower, band = box(-0.1, 0.02, 0.02), box(0.02, 0.12, 0.005), box(0.04, 0.06, 0.005)
     grads, heights = {}, np.full((480, 640), np.nan, np.float32)
     for cam in Q:
