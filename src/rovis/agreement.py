@@ -37,6 +37,7 @@ from rovis.segment.boundary import Fit, side_evidence
 from rovis.segment.edges import Gradients
 from rovis.segment.lines import refine_segment
 
+
 @dataclass(frozen=True)
 class AgreementConfig:
     """How a book found is checked against the images at the end of a frame.
