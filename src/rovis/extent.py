@@ -824,6 +824,13 @@ class FacingConfig:
     moved side, where stereo places it, no lower than ``foot_cover`` of h; every stereo
     reading taken to within ``foot_sigma`` of h. ``foot_level``, ``foot_sigma``,
     ``foot_cover`` and ``foot_agree`` are shares of h, not metres.
+
+    Where the corners' height h is itself pulled down by a side on the foot, the cover is
+    first laid at the height its other sides give (:func:`height_off_feet`; the pipeline
+    then asks :func:`foot_side` there, and at h where nothing moves): each side fitted
+    within ``relay_fit_px`` pixels of where it lies, placed by stereo to within
+    ``relay_sigma`` (metres), two or more agreeing within ``relay_agree`` (metres), and
+    their mean more than ``relay_min`` (metres) from h. ``relay`` turns it on.
     """
 
     enabled: bool = True
@@ -840,6 +847,11 @@ class FacingConfig:
     foot_sigma: float = 0.6
     foot_cover: float = 0.5
     foot_agree: float = 0.25
+    relay: bool = True
+    relay_fit_px: float = 2.0
+    relay_sigma: float = 0.005
+    relay_agree: float = 0.007
+    relay_min: float = 0.004
 
 
 def settle_facing_sides(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],
@@ -1615,3 +1627,49 @@ def foot_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
                                 if k != s and not _facing(P, k, Q))):
         return 0.0
     return move
+
+
+def height_off_feet(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
+                    grads: dict[str, Gradients], desk_plane: NDArray[np.float64],
+                    cfg: FacingConfig = FacingConfig()) -> float | None:
+    """The cover's height above the desk (metres) as its sides give it where none of them
+    could be its page block's foot, or None where fewer than two tell it or they disagree.
+
+    Beyond the paper. A side both images took on the block's foot is triangulated on the
+    desk, and the cover's corners with it: rendered books 1–5 cm thick came out 1–3 cm
+    low, so :func:`foot_side`, asking for a side at that height, found none and lifted
+    nothing. Here each side is fitted within ``cfg.relay_fit_px`` pixels of where it lies
+    (the side itself, not an edge beside it, as :func:`height_from_sides`'s wider fit may
+    take) and placed by stereo (:func:`_line_height`), a side with its block in view
+    (1.5 px or more, at the corners' height) not asked.
+
+    Parameters
+    ----------
+    P : ndarray, shape (4, 3)
+        Cover corners on a plane parallel to the desk (world, metres), in cyclic order.
+    Q, grads, desk_plane
+        As :func:`fit_extent`.
+    cfg : FacingConfig
+        ``relay_fit_px``, ``relay_sigma`` and ``relay_agree``.
+    """
+    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+    h = float(np.mean(geometry.plane_distance(desk_plane, P)))
+    levels = []
+    for s in range(4):
+        if _facing(P, s, Q) and _block_shows(P, s, Q, -h * up, min_px=1.5):
+            continue  # maybe the foot
+        ends = P[[s, (s + 1) % 4]]
+        fits = {}
+        for cam in ("left", "right"):
+            pa, pb = geometry.project(Q[cam], ends)
+            fit = refine_segment(grads[cam], pa, pb, half_width=cfg.relay_fit_px)
+            if fit is None:
+                break
+            fits[cam] = fit
+        else:
+            z, sigma = _line_height(fits, ends[0], ends[1], Q, up)
+            if sigma <= cfg.relay_sigma:
+                levels.append(h + z)
+    if len(levels) < 2 or np.ptp(levels) > cfg.relay_agree:
+        return None
+    return float(np.mean(levels))

@@ -34,7 +34,8 @@ from rovis.calib import StereoRig
 from rovis.extent import (CompleteConfig, ExtentConfig, FacingConfig, SideHeightConfig,
                           _drop, _foot_is_edge, _grow_side, _moved, _on_desk, _side_scores, _unit,
                           complete_open, fit_pair_extent, foot_side, height_from_sides,
-                          lift_foot, settle_block_sides, settle_facing_sides, strong_share)
+                          height_off_feet, lift_foot, settle_block_sides, settle_facing_sides,
+                          strong_share)
 from rovis.heightmap import (HeightMap, HeightMapConfig, Rectification, dense_height_map,
                              height_map, raised_covers, smooth_height_map, snap_sides,
                              sweeps_confirm)
@@ -1804,22 +1805,38 @@ class Detector:
         """Each cover with its sides that both images took on the page block's foot moved
         in to the cover's edge above it (:func:`rovis.extent.foot_side`), kept where it
         passes the pose checks again and no side is shorter than ``min_cover_side``. The
-        height map's books too: the move rests on stereo, not on the maps."""
+        height map's books too: the move rests on stereo, not on the maps.
+
+        A side on the foot pulls the corners' height down with it; where the other sides
+        give another height (:func:`rovis.extent.height_off_feet`, ``facing.relay``), the
+        feet are asked first with the cover laid there (each image's quad on that plane,
+        their mean: the side on the foot keeps the two apart), then, where no side moves,
+        at the corners' height."""
+        cfg = self.cfg.facing
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         out = []
         for pair, book in found:
-            P, _ = _on_cover_plane(rig, pair, desk_plane)
-            moved = False
-            for s in range(4):
-                d = foot_side(P, s, Q, grads, desk_plane, self.cfg.facing)
-                if d > 0:
-                    P, moved = _moved(P, s, np.array([-d]))[0], True
-            if moved:
+            P, h = _on_cover_plane(rig, pair, desk_plane)
+            starts = [P]
+            h_sides = (height_off_feet(P, Q, grads, desk_plane, cfg)
+                       if cfg.relay and np.all(np.isfinite(P)) else None)
+            if h_sides is not None and abs(h_sides - h) > cfg.relay_min:
+                starts.insert(0, 0.5 * (on_plane(rig.Q_L, pair.left, desk_plane, h_sides)
+                                        + on_plane(rig.Q_R, pair.right, desk_plane, h_sides)))
+            for P in starts:
+                moved = False
+                for s in range(4):
+                    d = foot_side(P, s, Q, grads, desk_plane, cfg)
+                    if d > 0:
+                        P, moved = _moved(P, s, np.array([-d]))[0], True
+                if not moved:
+                    continue
                 new_pair, new_book, _ = self._reconstruct_or_why(
                     rig, _pair_at(rig, pair, P), desk_plane, texture)
                 if new_book is not None and min(new_book.pose.size[:2]) >= \
                         self.cfg.min_cover_side:
                     pair, book = new_pair, new_book
+                    break
             out.append((pair, book))
         return out
 
