@@ -825,12 +825,14 @@ class FacingConfig:
     reading taken to within ``foot_sigma`` of h. ``foot_level``, ``foot_sigma``,
     ``foot_cover`` and ``foot_agree`` are shares of h, not metres.
 
-    Where the corners' height h is itself pulled down by a side on the foot, the cover is
-    first laid at the height its other sides give (:func:`height_off_feet`; the pipeline
-    then asks :func:`foot_side` there, and at h where nothing moves): each side fitted
-    within ``relay_fit_px`` pixels of where it lies, placed by stereo to within
-    ``relay_sigma`` (metres), two or more agreeing within ``relay_agree`` (metres), and
-    their mean more than ``relay_min`` (metres) from h. ``relay`` turns it on.
+    Where the corners' height h is itself wrong (a side on the foot pulls it down), the
+    cover is first laid at the height its other sides give (:func:`height_off_feet`; the
+    pipeline then asks :func:`foot_side` there, and at h where no side moves or the moved
+    cover fails the pose checks): each side fitted within ``relay_fit_px`` pixels of where
+    it lies, placed by stereo to within ``relay_sigma`` (metres, for a 0.1 px error of
+    each image's line), two or more agreeing within ``relay_agree`` (metres), and their
+    mean more than ``relay_min`` (metres) from h either way. ``relay`` turns it on, within
+    ``feet``.
     """
 
     enabled: bool = True
@@ -1641,7 +1643,8 @@ def height_off_feet(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     nothing. Here each side is fitted within ``cfg.relay_fit_px`` pixels of where it lies
     (the side itself, not an edge beside it, as :func:`height_from_sides`'s wider fit may
     take) and placed by stereo (:func:`_line_height`), a side with its block in view
-    (1.5 px or more, at the corners' height) not asked.
+    (1.5 px or more, at the corners' height; a fixed bound) not asked. NaN corners, or
+    corners on or below the desk: None.
 
     Parameters
     ----------
@@ -1654,6 +1657,8 @@ def height_off_feet(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     """
     up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
     h = float(np.mean(geometry.plane_distance(desk_plane, P)))
+    if not (h > 0 and np.all(np.isfinite(P))):
+        return None
     levels = []
     for s in range(4):
         if _facing(P, s, Q) and _block_shows(P, s, Q, -h * up, min_px=1.5):

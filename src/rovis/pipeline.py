@@ -1810,16 +1810,15 @@ class Detector:
         A side on the foot pulls the corners' height down with it; where the other sides
         give another height (:func:`rovis.extent.height_off_feet`, ``facing.relay``), the
         feet are asked first with the cover laid there (each image's quad on that plane,
-        their mean: the side on the foot keeps the two apart), then, where no side moves,
-        at the corners' height."""
+        their mean: the side on the foot keeps the two apart), then, where no side moves
+        or the moved cover fails the checks, at the corners' height."""
         cfg = self.cfg.facing
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         out = []
         for pair, book in found:
             P, h = _on_cover_plane(rig, pair, desk_plane)
             starts = [P]
-            h_sides = (height_off_feet(P, Q, grads, desk_plane, cfg)
-                       if cfg.relay and np.all(np.isfinite(P)) else None)
+            h_sides = height_off_feet(P, Q, grads, desk_plane, cfg) if cfg.relay else None
             if h_sides is not None and abs(h_sides - h) > cfg.relay_min:
                 starts.insert(0, 0.5 * (on_plane(rig.Q_L, pair.left, desk_plane, h_sides)
                                         + on_plane(rig.Q_R, pair.right, desk_plane, h_sides)))
