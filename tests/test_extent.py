@@ -1117,19 +1117,26 @@ def test_detect_takes_the_cover_not_its_page_block(scene_54_detected):
     assert np.linalg.norm(off.pose.center - true) > 0.01
 
 
-def test_a_cover_its_foot_pulled_low_is_laid_where_its_sides_are():
-    """build/rt2's scene 104 (rovis synth --protocol table2 --n 128 --seed 1): book 1
-    (159 x 91 x 50 mm), a side on its page block's foot: the corners came out 29 mm low,
-    no side at the height foot_side asks for, and it was found 30.7 mm off. Its other
-    sides say 5 cm (extent.height_off_feet), the foot is lifted there."""
-    sc, r = dataset_scene("table2", 1, 104)
-    true = np.array(r.truth["books"][1]["center"])
+@pytest.mark.parametrize("protocol, seed, scene, book", [("table2", 1, 104, 1),
+                                                       ("table1", 4, 49, 2)])
+def test_a_cover_its_foot_pulled_low_is_laid_where_its_sides_are(protocol, seed, scene, book):
+    """A side on its page block's foot put the corners at the wrong height, no side where
+    foot_side looks for one; its other sides say where the cover is, and the foot is
+    lifted there.
+
+    - build/rt2's scene 104 (rovis synth --protocol table2 --n 128 --seed 1), book 1
+      (159 x 91 x 50 mm): corners 29 mm low, found 30.7 mm off.
+    - build/t1d's scene 49 (--protocol table1 --n 100 --seed 4), book 2 (162 x 94 x 40
+      mm): found 12.0 mm off, 9 mm low. Its far side shows its page block 2.3 px wide,
+      under ``facing.foot_px``: no foot, and asked, it reads the cover's height."""
+    sc, r = dataset_scene(protocol, seed, scene)
+    true = np.array(r.truth["books"][book]["center"])
     got = []
     for settings in ([], ["facing.relay=false"]):
         res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
         got.append(min(np.linalg.norm(o.pose.center - true) for o in res.objects))
     assert got[0] < 0.006  # m
-    assert got[1] > 0.02  # m
+    assert got[1] > 0.01  # m
 
 
 @pytest.fixture(scope="module")

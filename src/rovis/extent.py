@@ -831,8 +831,8 @@ class FacingConfig:
     cover fails the pose checks): each side fitted within ``relay_fit_px`` pixels of where
     it lies, placed by stereo to within ``relay_sigma`` (metres, for a 0.1 px error of
     each image's line), two or more agreeing within ``relay_agree`` (metres), and their
-    mean more than ``relay_min`` (metres) from h either way. ``relay`` turns it on, within
-    ``feet``.
+    mean more than ``relay_min`` (metres) from h either way; a facing side whose block
+    shows ``foot_px`` or more is not asked. ``relay`` turns it on, within ``feet``.
     """
 
     enabled: bool = True
@@ -1642,9 +1642,10 @@ def height_off_feet(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     low, so :func:`foot_side`, asking for a side at that height, found none and lifted
     nothing. Here each side is fitted within ``cfg.relay_fit_px`` pixels of where it lies
     (the side itself, not an edge beside it, as :func:`height_from_sides`'s wider fit may
-    take) and placed by stereo (:func:`_line_height`), a side with its block in view
-    (1.5 px or more, at the corners' height; a fixed bound) not asked. NaN corners, or
-    corners on or below the desk: None.
+    take) and placed by stereo (:func:`_line_height`). A side facing the camera is not
+    asked where its block would show ``cfg.foot_px`` pixels or more at the corners' height
+    (a foot :func:`foot_side` could move; below that the foot and the cover's edge are one
+    edge to the fits). NaN corners, or corners on or below the desk: None.
 
     Parameters
     ----------
@@ -1653,7 +1654,7 @@ def height_off_feet(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     Q, grads, desk_plane
         As :func:`fit_extent`.
     cfg : FacingConfig
-        ``relay_fit_px``, ``relay_sigma`` and ``relay_agree``.
+        ``relay_fit_px``, ``relay_sigma``, ``relay_agree`` and ``foot_px``.
     """
     up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
     h = float(np.mean(geometry.plane_distance(desk_plane, P)))
@@ -1661,7 +1662,7 @@ def height_off_feet(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
         return None
     levels = []
     for s in range(4):
-        if _facing(P, s, Q) and _block_shows(P, s, Q, -h * up, min_px=1.5):
+        if _facing(P, s, Q) and _block_shows(P, s, Q, -h * up, min_px=cfg.foot_px):
             continue  # maybe the foot
         ends = P[[s, (s + 1) % 4]]
         fits = {}
