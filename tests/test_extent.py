@@ -1127,8 +1127,9 @@ def test_a_cover_its_foot_pulled_low_is_laid_where_its_sides_are(protocol, seed,
     - build/rt2's scene 104 (rovis synth --protocol table2 --n 128 --seed 1), book 1
       (159 x 91 x 50 mm): corners 29 mm low, found 30.7 mm off.
     - build/t1d's scene 49 (--protocol table1 --n 100 --seed 4), book 2 (162 x 94 x 40
-      mm): found 12.0 mm off, 9 mm low. Its far side shows its page block 2.3 px wide,
-      under ``facing.foot_px``: no foot, and asked, it reads the cover's height."""
+      mm): found 12.0 mm off, 9 mm low. Its second side facing the camera shows its page
+      block 2.3 px wide, under ``facing.foot_px``: no foot, and asked, it reads the
+      cover's height."""
     sc, r = dataset_scene(protocol, seed, scene)
     true = np.array(r.truth["books"][book]["center"])
     got = []
