@@ -670,12 +670,13 @@ def _edge_level(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]
 
 def _edge_height(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
                  grads: dict[str, Gradients], up: NDArray[np.float64],
-                 px_sigma: float = 0.1) -> tuple[float, float]:
+                 px_sigma: float = 0.1, half_width: float = 5.0) -> tuple[float, float]:
     """Height (metres, relative to the cover plane) of the edge next to side ``s`` of cover
     ``P`` (4, 3), with its standard deviation for a ``px_sigma`` error of each image's fit
     (inf where a fit fails).
 
-    The side is fit in each image on its own (:func:`refine_segment`); the edge is the 3D
+    The side is fit in each image on its own (:func:`refine_segment`, within
+    ``half_width`` pixels of its projection); the edge is the 3D
     line on both back-projected planes, found as the offset across the side (in the cover
     plane) and the height that put the side on both fitted lines: two linear equations,
     in pixels. Disparity moves a side only across it, so a side along the epipolar lines
@@ -685,7 +686,7 @@ def _edge_height(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64
     fits = {}
     for cam in ("left", "right"):
         pa, pb = geometry.project(Q[cam], np.array([a, b]))
-        fit = refine_segment(grads[cam], pa, pb, half_width=5.0)
+        fit = refine_segment(grads[cam], pa, pb, half_width=half_width)
         if fit is None:
             return 0.0, np.inf
         fits[cam] = fit
@@ -1604,15 +1605,7 @@ def foot_side(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
 
     def level(corners: NDArray[np.float64]) -> tuple[float, float]:
         # the side's edge above the desk by stereo, and its standard deviation (metres)
-        ends = corners[[s, (s + 1) % 4]]
-        fits = {}
-        for cam in ("left", "right"):
-            pa, pb = geometry.project(Q[cam], ends)
-            fit = refine_segment(grads[cam], pa, pb, half_width=cfg.foot_fit_px)
-            if fit is None:
-                return 0.0, np.inf
-            fits[cam] = fit
-        z, sigma = _line_height(fits, ends[0], ends[1], Q, up)
+        z, sigma = _edge_height(corners, s, Q, grads, up, half_width=cfg.foot_fit_px)
         return h + z, sigma
 
     z, sigma = level(P)
@@ -1642,7 +1635,7 @@ def height_off_feet(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     low, so :func:`foot_side`, asking for a side at that height, found none and lifted
     nothing. Here each side is fitted within ``cfg.relay_fit_px`` pixels of where it lies
     (the side itself, not an edge beside it, as :func:`height_from_sides`'s wider fit may
-    take) and placed by stereo (:func:`_line_height`). A side facing the camera is not
+    take) and placed by stereo (:func:`_edge_height`). A side facing the camera is not
     asked where its block would show ``cfg.foot_px`` pixels or more at the corners' height
     (a foot :func:`foot_side` could move; below that the foot and the cover's edge are one
     edge to the fits). NaN corners, or corners on or below the desk: None.
@@ -1664,18 +1657,9 @@ def height_off_feet(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     for s in range(4):
         if _facing(P, s, Q) and _block_shows(P, s, Q, -h * up, min_px=cfg.foot_px):
             continue  # maybe the foot
-        ends = P[[s, (s + 1) % 4]]
-        fits = {}
-        for cam in ("left", "right"):
-            pa, pb = geometry.project(Q[cam], ends)
-            fit = refine_segment(grads[cam], pa, pb, half_width=cfg.relay_fit_px)
-            if fit is None:
-                break
-            fits[cam] = fit
-        else:
-            z, sigma = _line_height(fits, ends[0], ends[1], Q, up)
-            if sigma <= cfg.relay_sigma:
-                levels.append(h + z)
+        z, sigma = _edge_height(P, s, Q, grads, up, half_width=cfg.relay_fit_px)
+        if sigma <= cfg.relay_sigma:  # (inf where a fit fails)
+            levels.append(h + z)
     if len(levels) < 2 or np.ptp(levels) > cfg.relay_agree:
         return None
     return float(np.mean(levels))
