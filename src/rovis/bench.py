@@ -74,7 +74,7 @@ def bench_triangulation(n_points: int = 1_000_000, *, repeats: int = 7,
 
 PIPELINE_STAGES = ("marker", "undistort", "gradients", "segmentation", "stereo", "pose", "heightmap",
                    "dense", "unskew", "side_height", "extent", "split", "trim", "feet", "join",
-                   "overlaps", "agreement", "track")
+                   "overlaps", "under", "agreement", "track")
 SEGMENTATION_STEPS = ("canny", "hough", "quads", "three_sided", "two_sided", "refine", "lsd")  # parts of "segmentation"
 
 

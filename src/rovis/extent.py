@@ -834,6 +834,16 @@ class FacingConfig:
     each image's line), two or more agreeing within ``relay_agree`` (metres), and their
     mean more than ``relay_min`` (metres) from h either way; a facing side whose block
     shows ``foot_px`` or more is not asked. ``relay`` turns it on, within ``feet``.
+
+    ``under`` turns on :func:`under_taller` (the pipeline's ``Detector._under_taller``): a
+    facing side that lies on a side of a book ``under_step`` (metres) or more taller, in
+    both images (within ``under_deg`` degrees of its direction and ``under_px`` pixels of
+    it, along ``under_share`` of the side or more), a book that stands beyond it on the
+    desk and whose side shares ``under_share`` of its length, is moved out to above that
+    side, by ``under_min`` (metres) or more; not where the side is an edge beyond that
+    book's side in either image (``under_free`` of its gradient alongside it or more), nor
+    where an edge of the other polarity lies inside it within its page block's width
+    (``under_inner`` of the side's gradient or more).
     """
 
     enabled: bool = True
@@ -855,6 +865,14 @@ class FacingConfig:
     relay_sigma: float = 0.005
     relay_agree: float = 0.007
     relay_min: float = 0.004
+    under: bool = True
+    under_step: float = 0.008
+    under_px: float = 2.0
+    under_deg: float = 4.0
+    under_share: float = 0.3
+    under_min: float = 0.002
+    under_free: float = 0.5
+    under_inner: float = 0.2
 
 
 def settle_facing_sides(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],
@@ -1663,3 +1681,138 @@ def height_off_feet(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     if len(levels) < 2 or np.ptp(levels) > cfg.relay_agree:
         return None
     return float(np.mean(levels))
+
+
+def under_taller(P: NDArray[np.float64], s: int, taller: Sequence[NDArray[np.float64]],
+                 Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
+                 desk_plane: NDArray[np.float64], cfg: FacingConfig = FacingConfig()) -> float:
+    """How far side ``s`` of cover ``P`` goes on hidden under a taller book in front of it.
+
+    A book in front of a lower one (nearer the cameras) and taller than it hides the strip
+    of the lower cover behind its top edge, and the lower cover's quad ends at that edge in
+    both images: its side facing the cameras comes out short. Books stand apart or flush on
+    the desk, so the hidden side lies no further out than the taller book's side, and
+    flush (as books put down together are), right under it. So where side ``s`` lies on a
+    side of one of ``taller`` in both images, that book stands beyond it on the desk and
+    the two sides share a stretch, the side is moved out, in the cover's plane, to above
+    the taller book's side. Not where the side shows as an edge beyond that stretch in
+    either image (it is the cover's own edge, which goes on where nothing hides it), nor
+    where an edge of the other polarity lies inside it within its page block's width (the
+    cover's edge, with the block between it and the taller book's edge).
+
+    Parameters
+    ----------
+    P : ndarray, shape (4, 3)
+        The cover's corners (world, metres), flat at its height, in order around it.
+    s : int
+        The side (corner s to s + 1); a side facing the cameras.
+    taller : sequence of ndarray, shape (4, 3)
+        The covers of the books found ``cfg.under_step`` or more taller.
+    Q : dict
+        "left", "right": world → ideal pixel projections (3, 4).
+    grads : dict
+        "left", "right": :class:`Gradients` of the ideal images.
+    desk_plane : ndarray, shape (4,)
+    cfg : FacingConfig
+        ``under_px``, ``under_deg``, ``under_share``, ``under_min``, ``under_inner``,
+        ``under_free``.
+
+    Returns
+    -------
+    float
+        The outward move (metres), 0 where the side stays.
+    """
+    up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
+    a, b = P[s], P[(s + 1) % 4]
+    m, length = 0.5 * (a + b), float(np.linalg.norm(b - a))
+    u = (b - a) / length
+    n = np.cross(up, u)
+    if n @ (m - P.mean(axis=0)) < 0:
+        n = -n  # outward
+    move = 0.0
+    for PB in taller:
+        for t in range(4):
+            top = PB[[t, (t + 1) % 4]]
+            if not all(_on_side(geometry.project(Q[c], np.array([a, b])),
+                                geometry.project(Q[c], top), cfg) for c in Q):
+                continue
+            # the taller book's side straight below, in the cover's plane
+            e0, e1 = top - np.outer((top - m) @ up, up)
+            ends = sorted([float((e0 - a) @ u), float((e1 - a) @ u)])
+            shared = max(0.0, min(ends[1], length) - max(ends[0], 0.0)) / length
+            if (PB.mean(axis=0) - m) @ n <= 0 or shared < cfg.under_share:
+                continue  # behind the side, or beside it
+            # m + x n on the line e0 + y (e1 - e0)
+            (x, _), *_ = np.linalg.lstsq(np.column_stack([n, e0 - e1]), e0 - m, rcond=None)
+            if x >= cfg.under_min and not _edge_beyond(np.array([a, b]), top, Q, grads,
+                                                      cfg.under_free):
+                move = max(move, float(x))
+    if move > 0 and _edge_inside(P, s, Q, grads, _drop(P, desk_plane), cfg.under_inner):
+        return 0.0
+    return move
+
+
+def _on_side(qa: NDArray[np.float64], qb: NDArray[np.float64], cfg: FacingConfig) -> bool:
+    """Whether segment ``qa`` (2, 2) lies on the line of segment ``qb`` (2, 2) in one image:
+    within ``cfg.under_deg`` of its direction, and within ``cfg.under_px`` of it wherever
+    ``qb`` runs alongside, over ``cfg.under_share`` of ``qa`` or more."""
+    da, db = qa[1] - qa[0], qb[1] - qb[0]
+    la, lb = float(np.linalg.norm(da)), float(np.linalg.norm(db))
+    if la < 1 or lb < 1 or abs(da @ db) < np.cos(np.radians(cfg.under_deg)) * la * lb:
+        return False
+    ub = db / lb
+    pts = qa[0] + np.linspace(0.0, 1.0, 21)[:, None] * da
+    along = (pts - qb[0]) @ ub
+    beside = (along >= 0) & (along <= lb)
+    across = (pts - qb[0]) @ np.array([-ub[1], ub[0]])
+    return bool(beside.mean() >= cfg.under_share and np.all(np.abs(across[beside]) <= cfg.under_px))
+
+
+def _edge_beyond(side: NDArray[np.float64], top: NDArray[np.float64],
+                 Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
+                 ratio: float) -> bool:
+    """Whether a cover's ``side`` (2, 3) (world) is an edge, in either image, where the
+    taller book's side ``top`` (2, 3) does not run alongside it (15 % of the side or more,
+    3 px from its ends): its median gradient across there ``ratio`` or more of that along
+    the stretch they share."""
+    for c in Q:
+        qa, qb = geometry.project(Q[c], side), geometry.project(Q[c], top)
+        lb = float(np.linalg.norm(qb[1] - qb[0]))
+        pts = qa[0] + np.linspace(0.02, 0.98, 49)[:, None] * (qa[1] - qa[0])
+        along = (pts - qb[0]) @ ((qb[1] - qb[0]) / lb)
+        free = (along < -3.0) | (along > lb + 3.0)
+        if free.mean() < 0.15 or np.count_nonzero(~free) < 5:
+            continue
+        edge = _edge(grads[c], pts[0], pts, 30.0)
+        if np.median(edge[free]) >= ratio * np.median(edge[~free]):
+            return True
+    return False
+
+
+def _edge_inside(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64]],
+                 grads: dict[str, Gradients], drop: NDArray[np.float64], ratio: float) -> bool:
+    """Whether, in either image, an edge of the other polarity than side ``s``'s own lies
+    inside it within its page block's width and 1.5 px (from 1.5 px in): its median
+    gradient across at ``ratio`` or more of the side's. The cover's own edge, where the
+    side lies on a taller book's edge with the cover's page block between: a cover hidden
+    under that book has the same tone up to the side. ``drop`` (3,) moves the cover onto
+    the desk (:func:`_drop`)."""
+    a, b = P[s], P[(s + 1) % 4]
+    mid = 0.5 * (a + b)
+    for c in Q:
+        q = geometry.project(Q[c], np.array([a, b, mid, mid + drop]))
+        d = q[1] - q[0]
+        inward = np.array([-d[1], d[0]]) / np.linalg.norm(d)
+        if inward @ (q[2] - geometry.project(Q[c], P).mean(axis=0)) > 0:
+            inward = -inward
+        block = abs(float((q[3] - q[2]) @ inward))
+        base = q[0] + np.linspace(0.2, 0.8, 25)[:, None] * d
+        offsets = np.arange(-1.0, block + 1.51, 0.5)
+        pts = base[None] + offsets[:, None, None] * inward
+        gx, gy = grads[c].sample(pts[..., 0], pts[..., 1])
+        across = np.median(gx * inward[0] + gy * inward[1], axis=1)  # (offsets,)
+        own = across[np.abs(offsets) <= 1.0]
+        sign = np.sign(own[np.argmax(np.abs(own))])
+        if np.any(-sign * across[offsets > 1.0] >= ratio * np.max(np.abs(own))):
+            return True
+    return False

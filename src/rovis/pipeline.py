@@ -32,10 +32,10 @@ from rovis import geometry, marker
 from rovis.agreement import AgreementConfig, agreement, edge_quality
 from rovis.calib import StereoRig
 from rovis.extent import (CompleteConfig, ExtentConfig, FacingConfig, SideHeightConfig,
-                          _drop, _foot_is_edge, _grow_side, _moved, _on_desk, _side_scores, _unit,
-                          complete_open, fit_pair_extent, foot_side, height_from_sides,
-                          height_off_feet, lift_foot, settle_block_sides, settle_facing_sides,
-                          strong_share)
+                          _drop, _facing, _foot_is_edge, _grow_side, _moved, _on_desk,
+                          _side_scores, _unit, complete_open, fit_pair_extent, foot_side,
+                          height_from_sides, height_off_feet, lift_foot, settle_block_sides,
+                          settle_facing_sides, strong_share, under_taller)
 from rovis.heightmap import (HeightMap, HeightMapConfig, Rectification, dense_height_map,
                              height_map, raised_covers, smooth_height_map, snap_sides,
                              sweeps_confirm)
@@ -642,6 +642,12 @@ class Detector:
                 warnings.append(f"{len(desk)} cover(s) whose inside matches on the desk "
                                 "dropped (the desk between books)")
         lap("overlaps")
+        # beyond the paper: a cover whose near side a taller book in front hides, its side
+        # moved out under that book's (last: the steps above take each found cover's quads
+        # for what both images show of it)
+        if self.cfg.facing.under and desk_plane is not None:
+            found = self._under_taller(rig, grads, found, desk_plane)
+            lap("under")
         # beyond the paper: each book as reported, checked against both images
         found = self._agreed(f, found, self._edge_strength(segs))
         lap("agreement")
@@ -1836,6 +1842,37 @@ class Detector:
                         self.cfg.min_cover_side:
                     pair, book = new_pair, new_book
                     break
+            out.append((pair, book))
+        return out
+
+    def _under_taller(self, rig: StereoRig, grads: dict[str, Gradients],
+                      found: list[tuple[Pair, BookDetection]], desk_plane: NDArray[np.float64],
+                      ) -> list[tuple[Pair, BookDetection]]:
+        """Each cover with a side facing the cameras that a taller book found in front
+        hides, that side moved out to above the taller book's side
+        (:func:`rovis.extent.under_taller`), kept where it passes the pose checks again.
+
+        The print test (:mod:`rovis.sweep`) is not asked again: the strip the move adds
+        shows the taller book's top, not this cover's print."""
+        cfg = self.cfg.facing
+        Q = {"left": rig.Q_L, "right": rig.Q_R}
+        covers = [_on_cover_plane(rig, pair, desk_plane) for pair, _ in found]
+        out = []
+        for i, (pair, book) in enumerate(found):
+            P, h = covers[i]
+            taller = [PB for j, (PB, hB) in enumerate(covers)
+                      if j != i and hB >= h + cfg.under_step]
+            moved = False
+            for s in range(4):
+                d = under_taller(P, s, taller, Q, grads, desk_plane, cfg) if taller and \
+                    _facing(P, s, Q) else 0.0
+                if d > 0:
+                    P, moved = _moved(P, s, np.array([d]))[0], True
+            if moved:
+                new_pair, new_book, _ = self._reconstruct_or_why(
+                    rig, _pair_at(rig, pair, P), desk_plane)
+                if new_book is not None:
+                    pair, book = new_pair, new_book
             out.append((pair, book))
         return out
 
