@@ -1856,12 +1856,18 @@ class Detector:
         shows the taller book's top, not this cover's print."""
         cfg = self.cfg.facing
         Q = {"left": rig.Q_L, "right": rig.Q_R}
-        covers = [_on_cover_plane(rig, pair, desk_plane) for pair, _ in found]
+        # the covers as reported (rectangles parallel to the desk), each with its height
+        # (NaN for a book with no cover to place)
+        covers = [(book.corners_world, float(np.mean(geometry.plane_distance(
+            desk_plane, book.corners_world)))) for _, book in found]
         out = []
         for i, (pair, book) in enumerate(found):
             P, h = covers[i]
+            if not np.all(np.isfinite(P)):
+                out.append((pair, book))
+                continue
             taller = [PB for j, (PB, hB) in enumerate(covers)
-                      if j != i and hB >= h + cfg.under_step]
+                      if j != i and hB >= h + cfg.under_step]  # (NaN >= x is False)
             moved = False
             for s in range(4):
                 d = under_taller(P, s, taller, Q, grads, desk_plane, cfg) if taller and \
