@@ -1436,7 +1436,7 @@ def test_a_side_a_taller_book_in_front_hides_goes_on_under_it():
     seen = extent._moved(P, s, np.array([-reach]))[0]
     move = extent.under_taller(seen, s, [PB], Q, grads, desk)
     assert abs(move - reach) < 0.002  # m: back out to the true side, under the taller book's
-    # not without a taller book, nor with it switched off
+    # not without a taller book, nor with no angle tolerance
     assert extent.under_taller(seen, s, [], Q, grads, desk) == 0.0
     assert extent.under_taller(seen, s, [PB], Q, grads, desk,
                                extent.FacingConfig(under_deg=0.0)) == 0.0
@@ -1454,12 +1454,26 @@ def test_a_side_on_a_taller_books_edge_beyond_its_page_block_stays():
                                extent.FacingConfig(under_inner=np.inf)) > 0.02  # m
 
 
+def test_a_side_in_view_on_a_taller_books_edge_stays():
+    """3 cm apart, the taller book's edge lies on the low cover's own edge in both images
+    (within 0.5 mm on the cover's plane): that edge goes on beyond the taller book, which is
+    narrower, so the side is not moved, even with the inside test off."""
+    P, PB, Q, grads, desk, s, reach = _behind_a_taller_book(0.03)
+    assert abs(reach) < 0.0005  # m
+    on_edge = extent._moved(P, s, np.array([-reach]))[0]
+    no_inside = extent.FacingConfig(under_inner=np.inf)
+    assert extent.under_taller(on_edge, s, [PB], Q, grads, desk, no_inside) == 0.0
+    # without that test too, it goes out under the taller book's side, the gap taken in
+    neither = extent.FacingConfig(under_inner=np.inf, under_free=np.inf)
+    assert abs(extent.under_taller(on_edge, s, [PB], Q, grads, desk, neither) - 0.03) < 0.002
+
+
 @pytest.mark.parametrize("seed, scene, book", [(3, 20, 0), (1, 87, 4)])
 def test_detect_takes_a_cover_on_under_a_taller_book_in_front(seed, scene, book):
     """build/t1c's scene 20 (rovis synth --protocol table1 --n 40 --seed 3), book 0 (283 x
     238 x 8 mm, 97 % visible), and build/rt1's scene 87 (--n 100 --seed 1), book 4 (247 x
     94 x 20 mm, 87 % visible): a taller book in front hides the cover's near side, and
-    the found cover ended at its edge, 44 and 14 mm short. (Scene 87's book is found 5 mm
+    the found cover ended at its edge, 26 and 14 mm short. (Scene 87's book is found 5 mm
     off along its length either way.)"""
     sc, r = dataset_scene("table1", seed, scene)
     truth = r.truth["books"][book]
@@ -1468,7 +1482,7 @@ def test_detect_takes_a_cover_on_under_a_taller_book_in_front(seed, scene, book)
     for settings in ([], ["facing.under=false"]):
         res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
         got = min(res.objects, key=lambda o: np.linalg.norm(o.pose.center - true))
-        assert np.linalg.norm(got.pose.center[:2] - true[:2]) < (0.006 if not settings else 0.02)
+        assert np.linalg.norm(got.pose.center[:2] - true[:2]) < (0.007 if not settings else 0.02)
         short.append(min(truth["size"][:2]) - min(got.pose.size[:2]))
     assert abs(short[0]) < 0.004  # m
     assert short[1] > 0.01  # m

@@ -835,14 +835,15 @@ class FacingConfig:
     mean more than ``relay_min`` (metres) from h either way; a facing side whose block
     shows ``foot_px`` or more is not asked. ``relay`` turns it on, within ``feet``.
 
-    ``under`` turns on :func:`under_taller` (the pipeline's ``Detector._under_taller``): a
-    facing side that lies on a side of a book ``under_step`` (metres) or more taller, in
-    both images (within ``under_deg`` degrees of its direction and ``under_px`` pixels of
-    it, along ``under_share`` of the side or more), a book that stands beyond it on the
-    desk and whose side shares ``under_share`` of its length, is moved out to above that
-    side, by ``under_min`` (metres) or more; not where the side is an edge beyond that
-    book's side in either image (``under_free`` of its gradient alongside it or more), nor
-    where an edge of the other polarity lies inside it within its page block's width
+    ``under`` turns on :func:`under_taller` (the pipeline's ``Detector._under_taller``; a
+    switch of its own, apart from ``enabled``): a facing side that lies on a side of a book
+    ``under_step`` (metres) or more taller, in both images (within ``under_deg`` degrees
+    of its direction and ``under_px`` pixels of it, along ``under_share`` of the side or
+    more), a book that stands beyond it on the desk and whose side shares ``under_share``
+    of its length, is moved out to straight under that side, where that move is
+    ``under_min`` (metres) or more; not where the side is an edge beyond that book's side
+    in either image (``under_free`` of its gradient alongside it or more), nor where an
+    edge of the other polarity lies inside it within its page block's width
     (``under_inner`` of the side's gradient or more).
     """
 
@@ -1694,18 +1695,21 @@ def under_taller(P: NDArray[np.float64], s: int, taller: Sequence[NDArray[np.flo
     the desk, so the hidden side lies no further out than the taller book's side, and
     flush (as books put down together are), right under it. So where side ``s`` lies on a
     side of one of ``taller`` in both images, that book stands beyond it on the desk and
-    the two sides share a stretch, the side is moved out, in the cover's plane, to above
-    the taller book's side. Not where the side shows as an edge beyond that stretch in
-    either image (it is the cover's own edge, which goes on where nothing hides it), nor
-    where an edge of the other polarity lies inside it within its page block's width (the
-    cover's edge, with the block between it and the taller book's edge).
+    the two sides share a stretch, the side is moved out, in the cover's plane, to straight
+    under the taller book's side (the nearest such side, where several qualify). Not
+    where the side shows as an edge beyond that stretch in either image (it is the cover's
+    own edge, which goes on where nothing hides it), nor where an edge of the other
+    polarity lies inside it within its page block's width (the cover's edge, with the
+    block between it and the taller book's edge). A gap between the books that the
+    taller one's edge hides is taken into the cover.
 
     Parameters
     ----------
     P : ndarray, shape (4, 3)
-        The cover's corners (world, metres), flat at its height, in order around it.
+        The cover's corners (world, metres), in order around it.
     s : int
-        The side (corner s to s + 1); a side facing the cameras.
+        The side (corner s to s + 1); the caller asks this of a side facing the cameras
+        (:func:`_facing`).
     taller : sequence of ndarray, shape (4, 3)
         The covers of the books found ``cfg.under_step`` or more taller.
     Q : dict
@@ -1713,6 +1717,7 @@ def under_taller(P: NDArray[np.float64], s: int, taller: Sequence[NDArray[np.flo
     grads : dict
         "left", "right": :class:`Gradients` of the ideal images.
     desk_plane : ndarray, shape (4,)
+        ``[nx, ny, nz, d]``, n·X + d = 0, n up, world.
     cfg : FacingConfig
         ``under_px``, ``under_deg``, ``under_share``, ``under_min``, ``under_inner``,
         ``under_free``.
@@ -1726,10 +1731,10 @@ def under_taller(P: NDArray[np.float64], s: int, taller: Sequence[NDArray[np.flo
     a, b = P[s], P[(s + 1) % 4]
     m, length = 0.5 * (a + b), float(np.linalg.norm(b - a))
     u = (b - a) / length
-    n = np.cross(up, u)
+    n = _unit(np.cross(up, u))  # (u may tilt a little: the corners as triangulated)
     if n @ (m - P.mean(axis=0)) < 0:
         n = -n  # outward
-    move = 0.0
+    moves = []
     for PB in taller:
         for t in range(4):
             top = PB[[t, (t + 1) % 4]]
@@ -1746,10 +1751,11 @@ def under_taller(P: NDArray[np.float64], s: int, taller: Sequence[NDArray[np.flo
             (x, _), *_ = np.linalg.lstsq(np.column_stack([n, e0 - e1]), e0 - m, rcond=None)
             if x >= cfg.under_min and not _edge_beyond(np.array([a, b]), top, Q, grads,
                                                       cfg.under_free):
-                move = max(move, float(x))
-    if move > 0 and _edge_inside(P, s, Q, grads, _drop(P, desk_plane), cfg.under_inner):
+                moves.append(float(x))
+    # the nearest taller book's side bounds the hidden one
+    if not moves or _edge_inside(P, s, Q, grads, _drop(P, desk_plane), cfg.under_inner):
         return 0.0
-    return move
+    return min(moves)
 
 
 def _on_side(qa: NDArray[np.float64], qb: NDArray[np.float64], cfg: FacingConfig) -> bool:
@@ -1765,7 +1771,8 @@ def _on_side(qa: NDArray[np.float64], qb: NDArray[np.float64], cfg: FacingConfig
     along = (pts - qb[0]) @ ub
     beside = (along >= 0) & (along <= lb)
     across = (pts - qb[0]) @ np.array([-ub[1], ub[0]])
-    return bool(beside.mean() >= cfg.under_share and np.all(np.abs(across[beside]) <= cfg.under_px))
+    return bool(beside.any() and beside.mean() >= cfg.under_share
+                and np.all(np.abs(across[beside]) <= cfg.under_px))
 
 
 def _edge_beyond(side: NDArray[np.float64], top: NDArray[np.float64],
@@ -1773,8 +1780,9 @@ def _edge_beyond(side: NDArray[np.float64], top: NDArray[np.float64],
                  ratio: float) -> bool:
     """Whether a cover's ``side`` (2, 3) (world) is an edge, in either image, where the
     taller book's side ``top`` (2, 3) does not run alongside it (15 % of the side or more,
-    3 px from its ends): its median gradient across there ``ratio`` or more of that along
-    the stretch they share."""
+    3 px from its ends): its median gradient across there (:func:`_edge`, within 30° of
+    the side's normal) ``ratio`` or more of that along the stretch they share (so always,
+    where the shared stretch shows no gradient across)."""
     for c in Q:
         qa, qb = geometry.project(Q[c], side), geometry.project(Q[c], top)
         lb = float(np.linalg.norm(qb[1] - qb[0]))
@@ -1783,7 +1791,7 @@ def _edge_beyond(side: NDArray[np.float64], top: NDArray[np.float64],
         free = (along < -3.0) | (along > lb + 3.0)
         if free.mean() < 0.15 or np.count_nonzero(~free) < 5:
             continue
-        edge = _edge(grads[c], pts[0], pts, 30.0)
+        edge = _edge(grads[c], qa[0], pts, 30.0)
         if np.median(edge[free]) >= ratio * np.median(edge[~free]):
             return True
     return False
@@ -1793,7 +1801,8 @@ def _edge_inside(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64
                  grads: dict[str, Gradients], drop: NDArray[np.float64], ratio: float) -> bool:
     """Whether, in either image, an edge of the other polarity than side ``s``'s own lies
     inside it within its page block's width and 1.5 px (from 1.5 px in): its median
-    gradient across at ``ratio`` or more of the side's. The cover's own edge, where the
+    gradient across, over the middle 60 % of the side, at ``ratio`` or more of the
+    side's. The cover's own edge, where the
     side lies on a taller book's edge with the cover's page block between: a cover hidden
     under that book has the same tone up to the side. ``drop`` (3,) moves the cover onto
     the desk (:func:`_drop`)."""

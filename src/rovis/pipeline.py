@@ -643,8 +643,8 @@ class Detector:
                                 "dropped (the desk between books)")
         lap("overlaps")
         # beyond the paper: a cover whose near side a taller book in front hides, its side
-        # moved out under that book's (last: the steps above take each found cover's quads
-        # for what both images show of it)
+        # moved out to straight under that book's (last: the steps above take each found
+        # cover's quads for what both images show of it)
         if self.cfg.facing.under and desk_plane is not None:
             found = self._under_taller(rig, grads, found, desk_plane)
             lap("under")
@@ -1849,15 +1849,15 @@ class Detector:
                       found: list[tuple[Pair, BookDetection]], desk_plane: NDArray[np.float64],
                       ) -> list[tuple[Pair, BookDetection]]:
         """Each cover with a side facing the cameras that a taller book found in front
-        hides, that side moved out to above the taller book's side
+        hides, that side moved out to straight under the taller book's side
         (:func:`rovis.extent.under_taller`), kept where it passes the pose checks again.
 
         The print test (:mod:`rovis.sweep`) is not asked again: the strip the move adds
         shows the taller book's top, not this cover's print."""
         cfg = self.cfg.facing
         Q = {"left": rig.Q_L, "right": rig.Q_R}
-        # the covers as reported (rectangles parallel to the desk), each with its height
-        # (NaN for a book with no cover to place)
+        # the covers as reported (a taller book's side is where its book says), each with
+        # its height (NaN for a book with no cover to place)
         covers = [(book.corners_world, float(np.mean(geometry.plane_distance(
             desk_plane, book.corners_world)))) for _, book in found]
         out = []
@@ -1868,10 +1868,13 @@ class Detector:
                 continue
             taller = [PB for j, (PB, hB) in enumerate(covers)
                       if j != i and hB >= h + cfg.under_step]  # (NaN >= x is False)
+            if not taller:
+                out.append((pair, book))
+                continue
             moved = False
             for s in range(4):
-                d = under_taller(P, s, taller, Q, grads, desk_plane, cfg) if taller and \
-                    _facing(P, s, Q) else 0.0
+                d = under_taller(P, s, taller, Q, grads, desk_plane, cfg) \
+                    if _facing(P, s, Q) else 0.0
                 if d > 0:
                     P, moved = _moved(P, s, np.array([d]))[0], True
             if moved:
