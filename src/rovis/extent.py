@@ -1802,10 +1802,10 @@ def _edge_inside(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64
     """Whether, in either image, an edge of the other polarity than side ``s``'s own lies
     inside it within its page block's width and 1.5 px (from 1.5 px in): its median
     gradient across, over the middle 60 % of the side, at ``ratio`` or more of the
-    side's. The cover's own edge, where the
-    side lies on a taller book's edge with the cover's page block between: a cover hidden
-    under that book has the same tone up to the side. ``drop`` (3,) moves the cover onto
-    the desk (:func:`_drop`)."""
+    side's. That is the cover's own edge, where the side lies on a taller book's edge
+    with the cover's page block between; a cover hidden under that book shows none there
+    (unless print, or the taller book's shadow, lies along the side). ``drop`` (3,) moves
+    the cover onto the desk (:func:`_drop`)."""
     a, b = P[s], P[(s + 1) % 4]
     mid = 0.5 * (a + b)
     for c in Q:
