@@ -868,7 +868,7 @@ class FacingConfig:
     relay_min: float = 0.004
     under: bool = True
     under_step: float = 0.008
-    under_px: float = 2.0
+    under_px: float = 4.0
     under_deg: float = 4.0
     under_share: float = 0.3
     under_min: float = 0.002
