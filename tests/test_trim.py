@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from rovis import geometry, trim
-from rovis.extent import ExtentConfig, _block_shows, _drop
+from rovis.extent import ExtentConfig, _block_shows, _drop, height_from_sides
 from rovis.heightmap import HeightMap
 from rovis.pipeline import DetectConfig, Detector, Pair, with_settings
 from rovis.synth import render, sample_scene
@@ -208,6 +208,45 @@ def test_a_plain_cover_at_the_wrong_height_is_moved_to_the_maps(desk_book):
     (_, same), = det._at_map_height(f.rig, res.segmentation, f.grads, [(pair, book)],
                                     f.desk_plane, texture, maps)
     assert same is book
+
+
+def test_a_cover_its_sides_hold_at_its_height_is_not_moved_to_the_maps(desk_book):
+    """The maps read another surface over the cover (faked here: 45 mm everywhere); two of
+    its sides that do not face the cameras put it at 30 mm, where it is, so it stays
+    (``trim.map_sides``); without the test it moves to 45 mm."""
+    sc, r = desk_book
+    det, res, f, texture, maps = _frame(sc, r)
+    truth = np.asarray(sc.books[0].corners)[:4]
+    Q = {"left": f.rig.Q_L, "right": f.rig.Q_R}
+    assert height_from_sides(truth, Q, f.grads, f.desk_plane) == pytest.approx(0.03, abs=0.002)
+    hm, Q_map = maps[0]
+    other = [(HeightMap(np.full_like(hm.height, 0.045), hm.heights, hm.box), Q_map)]
+    pair, book, _ = _book(det, f, truth, texture)
+    (_, same), = det._at_map_height(f.rig, res.segmentation, f.grads, [(pair, book)],
+                                    f.desk_plane, texture, other)
+    assert same is book
+    off = Detector(sc.rig, with_settings(DetectConfig(), ["trim.map_sides=0"]))
+    (_, moved), = off._at_map_height(f.rig, res.segmentation, f.grads, [(pair, book)],
+                                     f.desk_plane, texture, other)
+    assert moved.pose.size[2] == pytest.approx(0.045, abs=0.003)  # m
+
+
+def test_detect_keeps_a_cover_its_sides_hold_off_the_maps_height():
+    """build/rt1's scene 67 (rovis synth --protocol table1 --n 100 --seed 1), book 2 (157 x
+    142 x 35 mm, light): found at 34 mm, its two sides that do not face the cameras at 34
+    mm too; the maps read 47 mm over it, and the height check moved it there, 12 mm high."""
+    sc, r = dataset_scene("table1", 1, 67)
+    truth = r.truth["books"][2]
+    true = np.array(truth["center"])
+    heights = []
+    for settings in ([], ["trim.map_sides=0"]):
+        res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
+        got = min(res.objects, key=lambda o: np.linalg.norm(o.pose.center - true))
+        heights.append(got.pose.size[2])
+        if not settings:
+            assert np.linalg.norm(got.pose.center - true) < 0.003  # m
+    assert heights[0] == pytest.approx(truth["size"][2], abs=0.003)  # m
+    assert heights[1] - truth["size"][2] > 0.01  # m
 
 
 @pytest.fixture(scope="module")

@@ -1598,7 +1598,8 @@ class Detector:
         """Each book whose height the maps read clearly otherwise over its cover
         (:func:`rovis.trim.map_height`), laid at the maps' height (both images' quads on
         that plane, their mean; or, where they disagree, the one whose sides are edges in
-        both images), its sides moved onto the edges both images show there."""
+        both images), its sides moved onto the edges both images show there. A book whose
+        sides' edges hold it at its height (``TrimConfig.map_sides``) stays."""
         cfg = self.cfg.trim
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         strength = self._edge_strength(segs)
@@ -1607,6 +1608,15 @@ class Detector:
             P = geometry.triangulate(rig.Q_L, rig.Q_R, pair.left, pair.right)
             height = float(np.mean(geometry.plane_distance(desk_plane, P)))
             h = map_height(P, maps, cfg) if book.source != "height map" else None
+            if h is not None and cfg.map_sides > 0 and abs(h - height) > cfg.map_sides:
+                # two or more of its sides that do not face the cameras, placed by stereo,
+                # agree on the height it has, not on the maps': the maps' patch there is
+                # another surface's (rt1 scene 67's book 2, 34 mm as both sides and the
+                # truth say, moved to 47)
+                sides = height_from_sides(P, Q, grads, desk_plane, self.cfg.side_height)
+                if (sides is not None and abs(sides - height) <= cfg.map_sides
+                        and abs(sides - h) > cfg.map_sides):
+                    h = None
             if h is not None and abs(h - height) >= cfg.min_height_move:
                 trials = []
                 laid = self._laid_at(rig, pair.left, pair.right, desk_plane, h)

@@ -47,7 +47,11 @@ class TrimConfig:
     map). The check: a book ``min_height_move`` or more from :func:`map_height`'s height
     is moved there; the map must have values at ``min_height_share`` of the points read,
     and ``min_height_agree`` of those within ``tolerance`` of their median. Its sides are
-    then moved onto the edges both images show within ``snap_reach`` either way.
+    then moved onto the edges both images show within ``snap_reach`` either way. A book
+    stays where two or more of its sides that do not face the cameras, placed by stereo,
+    agree on its height to within ``map_sides`` and not on the maps' (the height its
+    sides' edges give, :func:`rovis.extent.height_from_sides` with the pipeline's
+    ``side_height`` settings; 0 turns the test off).
 
     The trim: the cover is read in strips ``strip`` wide across each axis, ``samples``
     points per strip over ``span`` of the other axis; a strip's height is the median of
@@ -136,6 +140,7 @@ class TrimConfig:
     min_height_move: float = 0.003  # the maps sweep every 3 mm
     min_height_share: float = 0.4
     min_height_agree: float = 0.5
+    map_sides: float = 0.004  # side_height.agree: the sides' own spread
     print_grow: bool = True
     print_reach: float = 0.15  # scene 48's print 11 cm beyond a band (docs/stereo.md)
     print_min: float = 0.02  # at 15 mm covers nearly right grew onto their block's foot
@@ -169,7 +174,7 @@ class TrimConfig:
             ("max_gap", self.max_gap >= 0), ("min_cut", self.min_cut > 0),
             ("min_other", 0 <= self.min_other <= 1), ("min_keep", self.min_keep > 0),
             ("snap_reach", self.snap_reach >= 0 and self.snap_inward >= 0),
-            ("min_height_move", self.min_height_move >= 0),
+            ("min_height_move", self.min_height_move >= 0 and self.map_sides >= 0),
             ("min_height_share", 0 <= self.min_height_share <= 1
              and 0 <= self.min_height_agree <= 1),
             ("grow_reach", self.grow_reach > 0 and self.grow_min > 0),
