@@ -144,13 +144,15 @@ class DetectConfig:
         other seven sides within this of it
         (:meth:`Detector._side_fit`; beyond the paper). A segmentation pair gets it only
         after its alternatives (``stereo.alternatives``) made no book.
-    unskew_deg, unskew_height : float
-        Degrees (0 turns it off), metres. A cover whose corners make an angle further than
-        ``unskew_deg`` from 90° has a side on a line of its print or a neighbour's edge:
-        the cover is laid again from its other three sides, that one taken for unseen, and
-        kept within ``unskew_height`` of its height; one with every angle still that far
-        off is dropped (``"skewed"``; :meth:`Detector._unskewed`; beyond the paper; needs
-        the desk plane).
+    unskew_deg, unskew_height, unskew_reach : float
+        Degrees (0 turns it off), metres, a share. A cover whose corners make an angle
+        further than ``unskew_deg`` from 90° has a side on a line of its print or a
+        neighbour's edge: the cover is laid again from its other three sides, that one
+        taken for unseen and looked for ``complete.search`` and ``unskew_reach`` of the
+        difference of its neighbouring sides' lengths either way of where it was (0.5:
+        between its two ends), and kept within ``unskew_height`` of its height; one with
+        every angle still that far off is dropped (``"skewed"``; :meth:`Detector._unskewed`;
+        beyond the paper; needs the desk plane).
     segment, stereo, extent, complete, facing, sweep, side_height
         :class:`SegmentConfig`, :class:`StereoConfig`, :class:`ExtentConfig`,
         :class:`CompleteConfig`, :class:`FacingConfig`, :class:`SweepConfig`,
@@ -204,6 +206,7 @@ class DetectConfig:
     flat_refit_sides: float = 1.0
     unskew_deg: float = 8.0
     unskew_height: float = 0.01
+    unskew_reach: float = 0.5
     full_view: bool = True
     segment: SegmentConfig = field(default_factory=SegmentConfig)
     stereo: StereoConfig = field(default_factory=StereoConfig)
@@ -2227,7 +2230,11 @@ class Detector:
         side between the two worst angles is taken for unseen and the cover laid again as
         a rectangle parallel to the desk, its height and axes from the other three sides
         (:func:`rovis.extent.complete_open`; the unseen side where both images show a step
-        within ``complete.search`` of where it was); the completed cover must pass the pose
+        within ``complete.search`` of where it was, and ``unskew_reach`` of the difference
+        of its neighbouring sides' lengths further: a side on a desk line or a neighbour's
+        edge may cross the cover's own near one end and lie centimetres out at the other,
+        build/rt1 scene 66's book 4's 54 mm out at its middle, its neighbours 146 and 206
+        mm long); the completed cover must pass the pose
         checks again and stay within ``unskew_height`` of the cover's height (a side on a
         taller neighbour's edge, or its print, gives that neighbour's height). Where that
         fails, the book stays as it was; one with every angle still that far off is a
@@ -2249,8 +2256,16 @@ class Detector:
             # the camera moved 1-2 px off their edges: corners up to 5 mm off)
             fits = {cam: [None if k == s else (q[k], _unit(q[(k + 1) % 4] - q[k]))
                           for k in range(4)] for cam, q in corners.items()}
+            # the side is looked for from where the images put it (its middle): its true
+            # place may be anywhere between its two ends, which lie half the difference of
+            # its neighbouring sides' lengths either way
+            C = book.corners_world
+            spread = abs(float(np.linalg.norm(C[s] - C[(s - 1) % 4])
+                               - np.linalg.norm(C[(s + 1) % 4] - C[(s + 2) % 4])))
+            search = cfg.complete.search + cfg.unskew_reach * spread
             P = complete_open(corners, {cam: np.arange(4) != s for cam in Q}, Q, grads,
-                              strength, desk_plane, replace(cfg.complete, at_ends=False),
+                              strength, desk_plane,
+                              replace(cfg.complete, at_ends=False, search=search),
                               height_range=(max(cfg.stereo.min_height, h - cfg.unskew_height),
                                             min(cfg.stereo.max_cover_height,
                                                 h + cfg.unskew_height)),
