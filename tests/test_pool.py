@@ -521,11 +521,13 @@ def test_a_cover_with_a_side_on_a_diagonal_is_completed_to_its_rectangle(book, s
     assert same is pair and kept is before and dropped == []
 
 
-@pytest.mark.parametrize("side", [0, 1, 2, 3])
+@pytest.mark.parametrize("side", [0, 3])
 def test_a_side_reaching_far_out_at_one_end_is_looked_for_between_its_ends(book, side):
     # one corner 8 cm out along its neighbouring side, on the bare desk (a side on a desk
     # line or a neighbour's edge, build/rt1 scene 66's book 4): the side's middle lies 4 cm
-    # out, beyond complete.search of where the cover's own edge is
+    # out, beyond complete.search of where the cover's own edge is. (Sides 1 and 2 so
+    # moved find another edge within complete.search, 26 and 15 mm off, and are laid
+    # there: the near search goes first, docs/stereo.md.)
     P, grads, rig = book
     out = P.copy()
     on = P[side] - P[side - 1]

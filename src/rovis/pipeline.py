@@ -148,9 +148,10 @@ class DetectConfig:
         Degrees (0 turns it off), metres, a share. A cover whose corners make an angle
         further than ``unskew_deg`` from 90° has a side on a line of its print or a
         neighbour's edge: the cover is laid again from its other three sides, that one
-        taken for unseen and looked for ``complete.search`` and ``unskew_reach`` of the
-        difference of its neighbouring sides' lengths either way of where it was (0.5:
-        between its two ends), and kept within ``unskew_height`` of its height; one with
+        taken for unseen and looked for within ``complete.search`` of where it was, then,
+        where that makes no cover, ``unskew_reach`` of the difference of its neighbouring
+        sides' lengths further (0.5: between its two ends), and kept within
+        ``unskew_height`` of its height; one with
         every angle still that far off is dropped (``"skewed"``; :meth:`Detector._unskewed`;
         beyond the paper; needs the desk plane).
     segment, stereo, extent, complete, facing, sweep, side_height
@@ -2230,12 +2231,12 @@ class Detector:
         side between the two worst angles is taken for unseen and the cover laid again as
         a rectangle parallel to the desk, its height and axes from the other three sides
         (:func:`rovis.extent.complete_open`; the unseen side where both images show a step
-        within ``complete.search`` of where it was, and ``unskew_reach`` of the difference
-        of its neighbouring sides' lengths further: a side on a desk line or a neighbour's
-        edge may cross the cover's own near one end and lie centimetres out at the other,
-        build/rt1 scene 66's book 4's 54 mm out at its middle, its neighbours 146 and 206
-        mm long); the completed cover must pass the pose
-        checks again and stay within ``unskew_height`` of the cover's height (a side on a
+        within ``complete.search`` of where it was, or, where that makes no cover,
+        ``unskew_reach`` of the difference of its neighbouring sides' lengths further: a
+        side on a desk line or a neighbour's edge may cross the cover's own near one end
+        and lie centimetres out at the other, build/rt1 scene 66's book 4's 54 mm out at
+        its middle, its neighbours 146 and 206 mm long); the completed cover must pass the
+        pose checks again and stay within ``unskew_height`` of the cover's height (a side on a
         taller neighbour's edge, or its print, gives that neighbour's height). Where that
         fails, the book stays as it was; one with every angle still that far off is a
         parallelogram of lines, no book (build/t2 scene 38: 43–45° off, a false positive)."""
@@ -2256,27 +2257,34 @@ class Detector:
             # the camera moved 1-2 px off their edges: corners up to 5 mm off)
             fits = {cam: [None if k == s else (q[k], _unit(q[(k + 1) % 4] - q[k]))
                           for k in range(4)] for cam, q in corners.items()}
-            # the side is looked for from where the images put it (its middle): its true
-            # place may be anywhere between its two ends, which lie half the difference of
-            # its neighbouring sides' lengths either way
+            # the side is looked for near where the images put it (its middle), then, where
+            # that makes no cover, between its two ends, which lie half the difference of
+            # its neighbouring sides' lengths either way (further first would let a
+            # stronger edge out there win over the cover's own near its middle)
             C = book.corners_world
             spread = abs(float(np.linalg.norm(C[s] - C[(s - 1) % 4])
                                - np.linalg.norm(C[(s + 1) % 4] - C[(s + 2) % 4])))
-            search = cfg.complete.search + cfg.unskew_reach * spread
-            P = complete_open(corners, {cam: np.arange(4) != s for cam in Q}, Q, grads,
-                              strength, desk_plane,
-                              replace(cfg.complete, at_ends=False, search=search),
-                              height_range=(max(cfg.stereo.min_height, h - cfg.unskew_height),
-                                            min(cfg.stereo.max_cover_height,
-                                                h + cfg.unskew_height)),
-                              side_range=(0.8 * cfg.min_cover_side, cfg.max_cover_side),
-                              fits=fits)
-            if P is not None:
+            reach = cfg.unskew_reach * spread
+            for search in [cfg.complete.search] + ([cfg.complete.search + reach]
+                                                   if reach > cfg.complete.step else []):
+                P = complete_open(corners, {cam: np.arange(4) != s for cam in Q}, Q, grads,
+                                  strength, desk_plane,
+                                  replace(cfg.complete, at_ends=False, search=search),
+                                  height_range=(max(cfg.stereo.min_height,
+                                                    h - cfg.unskew_height),
+                                                min(cfg.stereo.max_cover_height,
+                                                    h + cfg.unskew_height)),
+                                  side_range=(0.8 * cfg.min_cover_side, cfg.max_cover_side),
+                                  fits=fits)
+                if P is None:
+                    continue
                 trial, fitted, _ = self._reconstruct_or_why(rig, _pair_at(rig, pair, P),
                                                             desk_plane, texture)
                 # (its print's height test may move it: to a taller neighbour's print)
-                if fitted is not None and abs(float(fitted.pose.size[2]) - h) <= cfg.unskew_height:
+                if (fitted is not None
+                        and abs(float(fitted.pose.size[2]) - h) <= cfg.unskew_height):
                     pair, book = trial, fitted
+                    break
             if _skew_deg(book.corners_world).min() > cfg.unskew_deg:
                 skewed.append(("skewed", pair.left, pair.right))
             else:
