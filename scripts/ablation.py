@@ -69,6 +69,9 @@ STEPS: list[tuple[str, list[str]]] = [
     ("a printed frame grown with a side whose margin meets the desk", ["extent.frame_sides=4"]),
     ("a facing side moved off its page block's foot (both images)", ["facing.feet=false"]),
     ("a neighbour's edge of another height holds no side", ["extent.height_band=1"]),
+    ("a side hidden under a taller book in front", ["facing.under=false"]),
+    ("a skewed cover's side looked for out to its ends", ["unskew_reach=0"]),
+    ("a cover its sides hold kept off the maps' height", ["trim.map_sides=0"]),
 ]
 
 

@@ -526,12 +526,13 @@ def test_a_side_reaching_far_out_at_one_end_is_looked_for_between_its_ends(book,
     # one corner 8 cm out along its neighbouring side, on the bare desk (a side on a desk
     # line or a neighbour's edge, build/rt1 scene 66's book 4): the side's middle lies 4 cm
     # out, beyond complete.search of where the cover's own edge is. (Sides 1 and 2 so
-    # moved find another edge within complete.search, 26 and 15 mm off, and are laid
-    # there: the near search goes first, docs/stereo.md.)
+    # moved find another edge within complete.search and are laid there, their corners
+    # then 26 and 15 mm off: the near search goes first, docs/stereo.md.)
     P, grads, rig = book
     out = P.copy()
     on = P[side] - P[side - 1]
     out[side] += 0.08 * on / np.linalg.norm(on)
+    assert np.argmax(_skew_deg(out) + np.roll(_skew_deg(out), -1)) == side
     det = Detector(rig, DetectConfig())
     pair, before, why = det._reconstruct_or_why(
         rig, Pair(*_projected(rig, out).values(), 1.0, 0.0), DESK, None)

@@ -721,6 +721,8 @@ def test_a_refused_grow_is_asked_again_for_a_nearer_edge():
 def test_bad_settings_are_refused():
     with pytest.raises(ValueError, match="strip"):
         TrimConfig(strip=0.0)
+    with pytest.raises(ValueError, match="bad map_sides"):
+        TrimConfig(map_sides=-0.001)
     with pytest.raises(ValueError, match="min_other"):
         TrimConfig(min_other=1.5)
     with pytest.raises(ValueError, match="bad grow_reach"):

@@ -148,12 +148,12 @@ class DetectConfig:
         Degrees (0 turns it off), metres, a share. A cover whose corners make an angle
         further than ``unskew_deg`` from 90° has a side on a line of its print or a
         neighbour's edge: the cover is laid again from its other three sides, that one
-        taken for unseen and looked for within ``complete.search`` of where it was, then,
-        where that makes no cover, ``unskew_reach`` of the difference of its neighbouring
-        sides' lengths further (0.5: between its two ends), and kept within
-        ``unskew_height`` of its height; one with
-        every angle still that far off is dropped (``"skewed"``; :meth:`Detector._unskewed`;
-        beyond the paper; needs the desk plane).
+        taken for unseen and looked for within ``complete.search`` of where it was (its
+        middle), then, where that keeps no cover, ``unskew_reach`` of the difference of
+        its neighbouring sides' lengths further (0.5: as far as its ends lie from its
+        middle; 0 turns the wider search off), and kept within ``unskew_height`` of its
+        height; one with every angle still that far off is dropped (``"skewed"``;
+        :meth:`Detector._unskewed`; beyond the paper; needs the desk plane).
     segment, stereo, extent, complete, facing, sweep, side_height
         :class:`SegmentConfig`, :class:`StereoConfig`, :class:`ExtentConfig`,
         :class:`CompleteConfig`, :class:`FacingConfig`, :class:`SweepConfig`,
@@ -1612,7 +1612,7 @@ class Detector:
             P = geometry.triangulate(rig.Q_L, rig.Q_R, pair.left, pair.right)
             height = float(np.mean(geometry.plane_distance(desk_plane, P)))
             h = map_height(P, maps, cfg) if book.source != "height map" else None
-            if h is not None and cfg.map_sides > 0 and abs(h - height) > cfg.map_sides:
+            if h is not None and cfg.map_sides > 0 and abs(h - height) >= cfg.min_height_move:
                 # two or more of its sides that do not face the cameras, placed by stereo,
                 # agree on the height it has, not on the maps': the maps' patch there is
                 # another surface's (rt1 scene 67's book 2, 34 mm as both sides and the
@@ -2231,12 +2231,13 @@ class Detector:
         side between the two worst angles is taken for unseen and the cover laid again as
         a rectangle parallel to the desk, its height and axes from the other three sides
         (:func:`rovis.extent.complete_open`; the unseen side where both images show a step
-        within ``complete.search`` of where it was, or, where that makes no cover,
-        ``unskew_reach`` of the difference of its neighbouring sides' lengths further: a
-        side on a desk line or a neighbour's edge may cross the cover's own near one end
-        and lie centimetres out at the other, build/rt1 scene 66's book 4's 54 mm out at
-        its middle, its neighbours 146 and 206 mm long); the completed cover must pass the
-        pose checks again and stay within ``unskew_height`` of the cover's height (a side on a
+        within ``complete.search`` of where it was, or, where that keeps no cover (none,
+        or one the pose checks or the height bound refuse), ``unskew_reach`` of the
+        difference of its neighbouring sides' lengths further: a side on a desk line or a
+        neighbour's edge may lie centimetres out at one end and more at the other,
+        build/rt1 scene 66's book 4's 54 mm out at its middle, its neighbours 146 and 206
+        mm long); the completed cover must pass the pose checks again and stay within
+        ``unskew_height`` of the cover's height (a side on a
         taller neighbour's edge, or its print, gives that neighbour's height). Where that
         fails, the book stays as it was; one with every angle still that far off is a
         parallelogram of lines, no book (build/t2 scene 38: 43–45° off, a false positive)."""
@@ -2258,8 +2259,8 @@ class Detector:
             fits = {cam: [None if k == s else (q[k], _unit(q[(k + 1) % 4] - q[k]))
                           for k in range(4)] for cam, q in corners.items()}
             # the side is looked for near where the images put it (its middle), then, where
-            # that makes no cover, between its two ends, which lie half the difference of
-            # its neighbouring sides' lengths either way (further first would let a
+            # that keeps no cover, as far again as its ends lie from its middle (half the
+            # difference of its neighbouring sides' lengths; further first would let a
             # stronger edge out there win over the cover's own near its middle)
             C = book.corners_world
             spread = abs(float(np.linalg.norm(C[s] - C[(s - 1) % 4])

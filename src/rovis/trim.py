@@ -51,7 +51,7 @@ class TrimConfig:
     stays where two or more of its sides that do not face the cameras, placed by stereo,
     agree on its height to within ``map_sides`` and not on the maps' (the height its
     sides' edges give, :func:`rovis.extent.height_from_sides` with the pipeline's
-    ``side_height`` settings; 0 turns the test off).
+    ``side_height`` settings, whether or not that step is on; 0 turns the test off).
 
     The trim: the cover is read in strips ``strip`` wide across each axis, ``samples``
     points per strip over ``span`` of the other axis; a strip's height is the median of
@@ -174,7 +174,8 @@ class TrimConfig:
             ("max_gap", self.max_gap >= 0), ("min_cut", self.min_cut > 0),
             ("min_other", 0 <= self.min_other <= 1), ("min_keep", self.min_keep > 0),
             ("snap_reach", self.snap_reach >= 0 and self.snap_inward >= 0),
-            ("min_height_move", self.min_height_move >= 0 and self.map_sides >= 0),
+            ("min_height_move", self.min_height_move >= 0),
+            ("map_sides", self.map_sides >= 0),
             ("min_height_share", 0 <= self.min_height_share <= 1
              and 0 <= self.min_height_agree <= 1),
             ("grow_reach", self.grow_reach > 0 and self.grow_min > 0),
