@@ -542,7 +542,7 @@ def test_a_side_reaching_far_out_at_one_end_is_looked_for_between_its_ends(book,
     d = np.linalg.norm(after.corners_world[:, None] - P[None], axis=2)
     assert dropped == [] and d.min(axis=0).max() < 0.003  # m
     # looked for within complete.search only, it stays as it was or is laid on another
-    # edge there (the drawn book's page block, its shadow): a corner more than 1 cm off
+    # edge there: a corner more than 1 cm off
     det.cfg = replace(det.cfg, unskew_reach=0.0)
     [(_, kept)], _ = det._unskewed(rig, segs, grads, [(pair, before)], DESK, None)
     d = np.linalg.norm(kept.corners_world[:, None] - P[None], axis=2)

@@ -2237,10 +2237,10 @@ class Detector:
         neighbour's edge may lie centimetres out at one end and more at the other,
         build/rt1 scene 66's book 4's 54 mm out at its middle, its neighbours 146 and 206
         mm long); the completed cover must pass the pose checks again and stay within
-        ``unskew_height`` of the cover's height (a side on a
-        taller neighbour's edge, or its print, gives that neighbour's height). Where that
-        fails, the book stays as it was; one with every angle still that far off is a
-        parallelogram of lines, no book (build/t2 scene 38: 43–45° off, a false positive)."""
+        ``unskew_height`` of the cover's height (a side on a taller neighbour's edge, or its
+        print, gives that neighbour's height). Where that fails, the book stays as it was;
+        one with every angle still that far off is a parallelogram of lines, no book
+        (build/t2 scene 38: 43–45° off, a false positive)."""
         cfg = self.cfg
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         strength = self._edge_strength(segs)
