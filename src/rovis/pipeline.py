@@ -1887,8 +1887,9 @@ class Detector:
                 continue
             moved = False
             for s in range(4):
-                d = under_taller(P, s, taller, Q, grads, desk_plane, cfg) \
-                    if _facing(P, s, Q) else 0.0
+                if not _facing(P, s, Q):
+                    continue
+                d = under_taller(P, s, taller, Q, grads, desk_plane, cfg)
                 if d > 0:
                     P, moved = _moved(P, s, np.array([d]))[0], True
             if moved:
