@@ -83,6 +83,26 @@ def test_matching_is_one_to_one_hungarian_within_5_cm():
     assert match_books([], dets) == [] and match_books(truth, np.empty((0, 3))) == []
 
 
+def test_median_and_95th_percentile_say_what_a_mean_with_one_book_far_off_hides():
+    # four books 1 mm off and one 10 cm off (a book found as its neighbour, say): the mean
+    # is 20.8 mm, the median 1 mm; the 95th percentile interpolates 80 % of the way from
+    # the fourth value to the fifth
+    st = ev._stats([0.001, -0.001, 0.001, 0.001, -0.1, None])
+    assert st["n"] == 5
+    assert st["mean"] == pytest.approx(0.0208)
+    assert st["median"] == pytest.approx(0.001)
+    assert st["p95"] == pytest.approx(0.001 + 0.8 * 0.099)
+    assert ev._stats([None]) == {"max": None, "mean": None, "std": None, "median": None,
+                                 "p95": None, "n": 0}
+    # a results.json written before these were kept still prints, without their rows
+    old = {k: {"max": 0.001, "mean": 0.001, "std": 0.0, "n": 1} for k in ev.ERROR_KEYS}
+    s = {"images": 1, "books": 1, "found": 1, "recall": 1.0, "visible_books": 1,
+         "visible_found": 1, "recall_visible": 1.0, "false_positives": 0, "fp_per_image": 0.0,
+         "errors": old}
+    text = ev.method_table("closed", s, None)
+    assert "Mean" in text and "Median" not in text
+
+
 def test_summary_statistics_and_recall_of_well_visible_books():
     books = [_book([0.1, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),
              _book([0.4, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),
@@ -99,9 +119,13 @@ def test_summary_statistics_and_recall_of_well_visible_books():
     assert s["fp_per_image"] == 1.0
     x = s["errors"]["x"]  # |X_e| = 1 mm and 3 mm, twice
     assert (x["max"], x["mean"], x["std"], x["n"]) == pytest.approx((0.003, 0.002, 0.001, 4))
+    # 1, 1, 3, 3 mm: the median halfway, the 95th percentile 0.15 of the way from the
+    # third to the fourth value (linear), which are equal
+    assert (x["median"], x["p95"]) == pytest.approx((0.002, 0.003))
     assert s["errors"]["psi_deg"]["mean"] == pytest.approx(2.0)
     text = ev.method_table("closed", s, ev.PAPER_TABLE_I)
     assert "Max error" in text and "St. deviation" in text and "paper Table I" in text
+    assert "Median" in text and "95th percentile" in text
     # the grasp tolerance: 1 and 3 mm off are within 1 cm; 15 mm off is matched, not within
     assert s["within_1cm"] == 4 and "4 of the 4 matched books within 1 cm" in text
     off = {"books": [{"visible": True}],
