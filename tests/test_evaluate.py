@@ -103,6 +103,29 @@ def test_median_and_95th_percentile_say_what_a_mean_with_one_book_far_off_hides(
     assert "Mean" in text and "Median" not in text
 
 
+def test_the_books_found_furthest_off_are_listed_worst_first():
+    books = [_book([0.1, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),
+             _book([0.4, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03])]
+    dets = [_book([0.1, 0.125, 0.03], 0.0, [0.2, 0.15, 0.03]),  # 25 mm off in Y
+            _book([0.402, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03])]  # 2 mm off in X
+    score = score_books(books, dets)
+    score.update(sources=["height map", "segmentation"], quality=[0.4, 1.0])
+    far = {"scene": "0007", "lux": 15.0, "books": [{"visible": True}] * 2,
+           "methods": {"closed": score}}
+    near = {"scene": "0001", "lux": 500.0, "books": [{"visible": True}],
+            "methods": {"closed": score_books(books[:1], [_book([0.1, 0.1005, 0.03], 0.0,
+                                                                [0.2, 0.15, 0.03])])}}
+    rows = ev.furthest_books([near, far], "closed", n=2)
+    assert [(r["scene"], r["truth"]) for r in rows] == [("0007", 0), ("0007", 1)]
+    assert rows[0]["worst"] == pytest.approx(0.025)
+    assert (rows[0]["source"], rows[0]["quality"], rows[0]["lux"]) == ("height map", 0.4, 15.0)
+    assert len(ev.furthest_books([near, far], "closed")) == 3  # all, where fewer than n
+    assert ev.furthest_books([near, far], "open") == []
+    text = ev.furthest_table(rows)
+    assert "0007" in text and "25.0" in text and "height map" in text
+    assert "0001" not in text
+
+
 def test_summary_statistics_and_recall_of_well_visible_books():
     books = [_book([0.1, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),
              _book([0.4, 0.1, 0.03], 0.0, [0.2, 0.15, 0.03]),
@@ -224,6 +247,7 @@ def test_eval_cli_with_one_and_two_workers_gives_identical_results(dataset, seri
         captured = capsys.readouterr()
         assert "Max error" in captured.out and "paper Table I" in captured.out
         assert "agrees with the images" in captured.out
+        assert "Median" in captured.out and "found furthest off" in captured.out
         assert "0 scenes skipped" in captured.out
         assert "2/2 scenes" in captured.err
         for name in ("results.json", "report.txt", "positions.png", "yaw.png", "lux.png"):

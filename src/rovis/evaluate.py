@@ -734,6 +734,30 @@ def source_breakdown(records: Sequence[Mapping[str, Any]], methods: Sequence[str
     return out
 
 
+def furthest_books(records: Sequence[Mapping[str, Any]], method: str,
+                   n: int = 10) -> list[dict[str, Any]]:
+    """The ``n`` matched books ``method`` found furthest off along their worst axis of X, Y,
+    Z, furthest first: per book its ``scene``, ``lux``, ``truth`` (the book's index in the
+    scene's truth), ``worst`` (m), ``errors`` (:func:`book_errors`) and, where the record
+    has them, the detection's ``source`` and ``quality``. Where to look first: a few books
+    far off carry most of a mean (:func:`_stats`)."""
+    rows = []
+    for rec in records:
+        score = rec["methods"].get(method)
+        if score is None:
+            continue
+        for m in score["matches"]:
+            e = m["errors"]
+            row = {"scene": rec.get("scene"), "lux": rec.get("lux"), "truth": m["truth"],
+                   "worst": max(abs(e[c]) for c in ("x", "y", "z")), "errors": e}
+            for key in ("sources", "quality"):
+                if key in score:
+                    row[key.rstrip("s") if key == "sources" else key] = score[key][m["detection"]]
+            rows.append(row)
+    rows.sort(key=lambda r: -r["worst"])
+    return rows[:n]
+
+
 def agreement_breakdown(records: Sequence[Mapping[str, Any]],
                         methods: Sequence[str]) -> dict[str, Any]:
     """Per method and per measure of how well each detection agrees with the images
@@ -911,11 +935,28 @@ def agreement_table(agreement: Mapping[str, Mapping[str, Mapping[str, Mapping[st
     return "\n".join(rows)
 
 
+def furthest_table(rows: Sequence[Mapping[str, Any]]) -> str:
+    """:func:`furthest_books` as text: errors in millimetres and degrees."""
+    out = [f"{'scene':<8}{'book':>5}{'lux':>7}{'X_e mm':>8}{'Y_e mm':>8}{'Z_e mm':>8}{'Ψ_e °':>8}"
+           f"{'len mm':>8}{'wid mm':>8}  {'quality':>7}  found by"]
+    for r in rows:
+        e = r["errors"]
+        mm = "".join(_num(None if e[k] is None else 1000 * e[k], 8, 1)
+                     for k in ("x", "y", "z"))
+        out.append(f"{str(r['scene']):<8}{r['truth']:>5}{_num(r.get('lux'), 7, 0)}{mm}"
+                   f"{_num(e['psi_deg'], 8, 2)}"
+                   + "".join(_num(None if e[k] is None else 1000 * e[k], 8, 1)
+                             for k in ("length", "width"))
+                   + f"  {_num(r.get('quality'), 7, 2)}  {r.get('source', '-')}")
+    return "\n".join(out)
+
+
 def report(ev: Evaluation) -> str:
     """The text ``rovis eval`` prints: per method the Tables I/II block, a summary of all
     methods, and the breakdowns by light level, light and exposure (means, and the largest
     position errors in metres), by how each detection was found and by how well it agrees
-    with the images."""
+    with the images; last, the first method's ten books furthest off
+    (:func:`furthest_books`)."""
     summary = ev.summary()
     parts = [method_table(m, summary[m], paper_reference(m, ev.protocol)) for m in ev.methods]
     if ev.settings:
@@ -935,6 +976,12 @@ def report(ev: Evaluation) -> str:
         parts.append("By how well each detection agrees with the images (its quality and "
                      "reprojection error; within: the share of its band within 1 cm):\n"
                      + agreement_table(agreement))
+    if ev.methods:
+        furthest = furthest_books(ev.scenes, ev.methods[0])
+        if furthest:
+            parts.append(f"The {len(furthest)} matched books {ev.methods[0]} found furthest off "
+                         "on their worst axis of X, Y, Z (estimate minus truth):\n"
+                         + furthest_table(furthest))
     return "\n\n".join(parts)
 
 
