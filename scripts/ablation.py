@@ -72,7 +72,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("a side hidden under a taller book in front", ["facing.under=false"]),
     ("a skewed cover's side looked for out to its ends", ["unskew_reach=0"]),
     ("a cover its sides hold kept off the maps' height", ["trim.map_sides=0"]),
-    ("three sides of any facing give the height", ["side_height.any_sides=0"]),
+    ("three sides, facing or not, give the height", ["side_height.any_sides=0"]),
 ]
 
 

@@ -1205,12 +1205,13 @@ def test_the_sides_give_the_height_the_corners_miss(turned_book, dx_px):
 
 def test_one_side_alone_gives_no_height(lone_book):
     P, Q, grads, desk, _ = lone_book  # at 20°, one side that does not face the cameras
-    assert extent.height_from_sides(P, Q, grads, desk) is None
+    alone = extent.SideHeightConfig(any_sides=0)  # (three sides, facing or not: below)
+    assert extent.height_from_sides(P, Q, grads, desk, alone) is None
 
 
 def test_sides_that_disagree_give_no_height(turned_book):
     P, Q, grads, desk, _ = turned_book
-    strict = extent.SideHeightConfig(agree=0.0)  # no two fits agree exactly
+    strict = extent.SideHeightConfig(agree=0.0, any_sides=0)  # no two fits agree exactly
     assert extent.height_from_sides(P, Q, grads, desk, strict) is None
 
 
@@ -1237,8 +1238,11 @@ def test_three_sides_facing_or_not_give_the_height_where_the_two_facing_away_do_
 
 def test_three_sides_give_no_height_near_the_corners(turned_book):
     P, Q, grads, desk, _ = turned_book  # the corners at the book's height
-    assert extent.height_from_sides(P, Q, grads, desk,
-                                    extent.SideHeightConfig(max_sigma=0.0)) is None
+    cfg = extent.SideHeightConfig(max_sigma=0.0)
+    assert extent.height_from_sides(P, Q, grads, desk, cfg) is None
+    # ...where they agree on it: any_move alone refuses them
+    h = extent.height_from_sides(P, Q, grads, desk, replace(cfg, any_move=0.0))
+    assert h is not None and abs(h - THICKNESS) < 0.0025
 
 
 def test_bad_side_height_settings_are_refused():
