@@ -124,6 +124,12 @@ def test_the_books_found_furthest_off_are_listed_worst_first():
     text = ev.furthest_table(rows)
     assert "0007" in text and "25.0" in text and "height map" in text
     assert "0001" not in text
+    # a book with no height, in a record without lux, quality or source: dashes
+    bare = dict(rows[0], errors=dict(rows[0]["errors"], height=None))
+    for key in ("lux", "quality", "source"):
+        bare.pop(key)
+    line = ev.furthest_table([bare]).splitlines()[1]
+    assert line.split()[:3] == ["0007", "0", "-"] and line.split()[-3:] == ["-", "-", "-"]
 
 
 def test_summary_statistics_and_recall_of_well_visible_books():

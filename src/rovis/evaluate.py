@@ -750,11 +750,12 @@ def furthest_books(records: Sequence[Mapping[str, Any]], method: str,
             e = m["errors"]
             row = {"scene": rec.get("scene"), "lux": rec.get("lux"), "truth": m["truth"],
                    "worst": max(abs(e[c]) for c in ("x", "y", "z")), "errors": e}
-            for key in ("sources", "quality"):
+            for key, name in (("sources", "source"), ("quality", "quality")):
                 if key in score:
-                    row[key.rstrip("s") if key == "sources" else key] = score[key][m["detection"]]
+                    row[name] = score[key][m["detection"]]
             rows.append(row)
-    rows.sort(key=lambda r: -r["worst"])
+    # (a NaN error, which no check lets through, would sort first rather than anywhere)
+    rows.sort(key=lambda r: -r["worst"] if np.isfinite(r["worst"]) else -np.inf)
     return rows[:n]
 
 
@@ -936,18 +937,19 @@ def agreement_table(agreement: Mapping[str, Mapping[str, Mapping[str, Mapping[st
 
 
 def furthest_table(rows: Sequence[Mapping[str, Any]]) -> str:
-    """:func:`furthest_books` as text: errors in millimetres and degrees."""
+    """:func:`furthest_books` as text: errors in millimetres and degrees, ``-`` where
+    unknown (a book with no height, a record without lux, quality or source)."""
+    def mm(e: Mapping[str, Any], keys: tuple[str, ...]) -> str:
+        return "".join(_num(None if e[k] is None else 1000 * e[k], 8, 1) for k in keys)
+
     out = [f"{'scene':<8}{'book':>5}{'lux':>7}{'X_e mm':>8}{'Y_e mm':>8}{'Z_e mm':>8}{'Ψ_e °':>8}"
-           f"{'len mm':>8}{'wid mm':>8}  {'quality':>7}  found by"]
+           f"{'len mm':>8}{'wid mm':>8}{'hgt mm':>8}  {'quality':>7}  found by"]
     for r in rows:
         e = r["errors"]
-        mm = "".join(_num(None if e[k] is None else 1000 * e[k], 8, 1)
-                     for k in ("x", "y", "z"))
-        out.append(f"{str(r['scene']):<8}{r['truth']:>5}{_num(r.get('lux'), 7, 0)}{mm}"
-                   f"{_num(e['psi_deg'], 8, 2)}"
-                   + "".join(_num(None if e[k] is None else 1000 * e[k], 8, 1)
-                             for k in ("length", "width"))
-                   + f"  {_num(r.get('quality'), 7, 2)}  {r.get('source', '-')}")
+        out.append(f"{str(r['scene']):<8}{r['truth']:>5}{_num(r.get('lux'), 7, 0)}"
+                   f"{mm(e, ('x', 'y', 'z'))}{_num(e['psi_deg'], 8, 2)}"
+                   f"{mm(e, ('length', 'width', 'height'))}"
+                   f"  {_num(r.get('quality'), 7, 2)}  {r.get('source', '-')}")
     return "\n".join(out)
 
 
@@ -979,8 +981,9 @@ def report(ev: Evaluation) -> str:
     if ev.methods:
         furthest = furthest_books(ev.scenes, ev.methods[0])
         if furthest:
-            parts.append(f"The {len(furthest)} matched books {ev.methods[0]} found furthest off "
-                         "on their worst axis of X, Y, Z (estimate minus truth):\n"
+            name = _LABELS.get(ev.methods[0], ev.methods[0])
+            parts.append(f"The {len(furthest)} matched books {name} found furthest off on "
+                         "their worst axis of X, Y, Z (estimate minus truth):\n"
                          + furthest_table(furthest))
     return "\n\n".join(parts)
 

@@ -750,9 +750,9 @@ class SideHeightConfig:
     mean lies ``min_move`` or more from its corners' height.
 
     Where those sides give no height, ``any_sides`` sides or more, facing the cameras or
-    not, each placed to within ``any_sigma``, that agree to within ``any_agree`` give it,
-    where their mean lies ``any_move`` or more from the corners' height (0 sides: not
-    asked).
+    not, each placed to within ``any_sigma`` and all within ``any_agree`` of one of them,
+    give it, where their mean lies ``any_move`` or more from the corners' height (0 sides:
+    not asked).
     """
 
     enabled: bool = True
@@ -779,7 +779,9 @@ def height_from_sides(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
                       grads: dict[str, Gradients], desk_plane: NDArray[np.float64],
                       cfg: SideHeightConfig = SideHeightConfig()) -> float | None:
     """The cover's height above the desk (metres) as its sides' edges give it, or None
-    where fewer than two sides tell it or they disagree.
+    where fewer than two sides facing away from the cameras tell it or they disagree, and
+    no ``cfg.any_sides`` sides, facing or not, agree on a height ``cfg.any_move`` or more
+    from the corners'.
 
     A cover's height from its four triangulated corners (eq. 5) rests on each corner's
     disparity, and a pixel of disparity is a centimetre of height at 1.2 m: one image's
@@ -792,11 +794,12 @@ def height_from_sides(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
     of it: on a rendered 2 cm book those came out 2–5 mm low.)
 
     Where they give none (one of them along the epipolar lines, say), ``cfg.any_sides``
-    (3) sides, facing or not, that agree give it, if it lies ``cfg.any_move`` (1 cm) or
-    more from the corners' height: three sides' edges a centimetre or more from where the
-    corners put the cover are more than a facing side's foot (the Table I renders' scene
-    69 book 0, 34 mm found at the corners against 21 mm by three sides and the truth). A
-    height so given is never within ``any_move`` of the corners'.
+    (3) sides, facing or not, all within ``cfg.any_agree`` of one of them, give it (their
+    mean), if it lies ``cfg.any_move`` (1 cm) or more from the corners' height: three
+    sides' edges a centimetre or more from where the corners put the cover are more than
+    a facing side's foot (the Table I renders' scene 69 book 0: 34 mm at its corners, 19
+    mm by three of its sides, 21 mm in truth). A height so given is never within
+    ``any_move`` of the corners'.
 
     Parameters
     ----------
