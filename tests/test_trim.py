@@ -443,12 +443,39 @@ def test_print_grow_takes_an_edge_nearer_than_print_min_beyond_the_block_foot(bo
     assert grow(short, a + 1, replace(CFG, print_near=0.019)) == 0.0
     # the cover's own end stays
     assert grow(truth, a + 1) == 0.0
-    # the other end, whose block no image shows, cut as short keeps print_min (20 mm)
+    # the other end, whose block no image shows, cut as short: from print_far (4 mm) out
     other = _end_in(truth, 0, 0.018)
     assert not _block_shows(other, (a + 3) % 4, Q, _drop(other, f.desk_plane))
-    assert grow(other, (a + 3) % 4) == 0.0
-    assert grow(other, (a + 3) % 4, replace(CFG, print_min=0.012)) == pytest.approx(
-        0.018, abs=0.003)
+    assert grow(other, (a + 3) % 4) == pytest.approx(0.018, abs=0.003)
+    # (print_far at print_min, as before stop 67: 20 mm at least)
+    assert grow(other, (a + 3) % 4, replace(CFG, print_far=0.02)) == 0.0
+    assert grow(other, (a + 3) % 4, replace(CFG, print_far=0.02, print_min=0.012)) == \
+        pytest.approx(0.018, abs=0.003)
+
+
+@pytest.mark.parametrize("by", [0.01, 0.014])
+def test_print_grow_takes_a_near_edge_beyond_a_side_facing_away(book_scene, by):
+    # A printed frame a few millimetres inside the cover's edge stops a quad there: on the
+    # end whose page block no image shows, the edge 10 or 14 mm out is the cover's (its
+    # print lines up at the cover's height up to it, the desk beyond)
+    sc, r = book_scene
+    det, res, f, texture, _ = _frame(sc, r)
+    truth = np.asarray(sc.books[0].corners)[:4]
+    a, _ = _long_axis(truth)
+    Q = {"left": f.rig.Q_L, "right": f.rig.Q_R}
+    short = _end_in(truth, 0, by)
+    s = (a + 3) % 4
+    assert not _block_shows(short, s, Q, _drop(short, f.desk_plane))
+    strength = det._edge_strength(res.segmentation)
+
+    def grow(P, cfg=CFG):
+        return print_grow(P, s, 0.03, Q, f.grads, strength, texture, f.desk_plane,
+                          det.cfg.extent, cfg)
+
+    assert grow(short) == pytest.approx(by, abs=0.003)
+    # print_far beyond the edge: the side stays, as it does at the cover's own end
+    assert grow(short, replace(CFG, print_far=by + 0.004)) == 0.0
+    assert grow(truth) == 0.0
 
 
 @pytest.mark.parametrize("aside", [0.0, 0.5])
@@ -733,6 +760,8 @@ def test_bad_settings_are_refused():
         TrimConfig(print_min=0.0)
     with pytest.raises(ValueError, match="bad print_reach"):
         TrimConfig(print_near=0.0)
+    with pytest.raises(ValueError, match="bad print_reach"):
+        TrimConfig(print_far=0.0)
     with pytest.raises(ValueError, match="bad print_reach"):
         TrimConfig(print_foot_margin=-0.001)
     with pytest.raises(ValueError, match="bad print_edges"):

@@ -85,7 +85,10 @@ class TrimConfig:
     edge both images show, at least ``print_min`` and at most ``print_reach`` beyond it
     (and the book no longer than the extent step's ``max_side``); where a page block
     shows below the side, at least ``print_near`` and ``print_foot_margin`` beyond where
-    its foot would show (the nearer of those and ``print_min``). The strip between must
+    its foot would show (the nearer of those and ``print_min``); where none shows, at
+    least ``print_far`` (the nearer of it and ``print_min``: a printed frame near the
+    edge stops a side a few millimetres short, and no block's foot lies beyond a side
+    facing away). The strip between must
     line up between the images at the cover's height (the sweep's best within the
     tolerance above, NCC at least ``print_min_ncc`` and ``print_margin`` above the
     desk's; from ``print_min`` out, each ``print_piece`` of it best within the
@@ -145,6 +148,7 @@ class TrimConfig:
     print_reach: float = 0.15  # scene 48's print 11 cm beyond a band (docs/stereo.md)
     print_min: float = 0.02  # at 15 mm covers nearly right grew onto their block's foot
     print_near: float = 0.008  # from the side, where past the block's foot (docs/stereo.md)
+    print_far: float = 0.004  # where no block shows: a frame 3-20 mm in (stop 67)
     print_foot_margin: float = 0.004
     print_min_ncc: float = 0.6
     print_margin: float = 0.05
@@ -182,7 +186,8 @@ class TrimConfig:
             ("grow_min_same", 0 <= self.grow_min_same <= 1
              and 0 <= self.grow_continuation <= 1),
             ("print_reach", self.print_reach > 0 and self.print_min > 0
-             and self.print_near > 0 and self.print_foot_margin >= 0
+             and self.print_near > 0 and self.print_far > 0
+             and self.print_foot_margin >= 0
              and self.print_beyond > 0 and self.print_piece > 0),
             ("print_edges", self.print_edges >= 1),
             ("grow_tries", self.grow_tries >= 1), ("grow_retry", self.grow_retry > 0),
@@ -199,8 +204,8 @@ class TrimConfig:
                              "positive, as are grow_reach and grow_min; span in (0, 1]; "
                              "min_other, min_height_share, min_height_agree, grow_min_same, "
                              "grow_continuation, print_continuation and print_max_overlap "
-                             "in [0, 1]; print_reach, print_min, print_near, print_beyond "
-                             "and print_piece positive, print_foot_margin >= 0, "
+                             "in [0, 1]; print_reach, print_min, print_near, print_far, "
+                             "print_beyond and print_piece positive, print_foot_margin >= 0, "
                              "print_edges >= 1, grow_tries >= 1, grow_retry > 0, "
                              "grow_absorb >= 0, "
                              "the lateral_* settings >= 0 and lateral_min over 0.01, "
@@ -466,7 +471,9 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
        below the side (:func:`rovis.extent._block_shows`), from ``cfg.print_near`` out
        if that is ``cfg.print_foot_margin`` beyond where the block's foot would show in
        both images (:func:`_foot_offset`; its face, the side's own, spans the image
-       from the side to there, and a side nearly right would grow onto its foot). For
+       from the side to there, and a side nearly right would grow onto its foot); where
+       none shows, from ``cfg.print_far`` out (no foot lies beyond the side; a frame
+       printed a few millimetres inside the cover's edge stops it there). For
        such an edge, the strip from the side to it must sweep best within the
        tolerance, with an NCC of at least ``cfg.print_min_ncc`` and
        ``cfg.print_margin`` above the NCC at the desk's height, and from
@@ -492,6 +499,8 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
     if _block_shows(P, s, Q, drop):
         least = min(least, max(cfg.print_near, _foot_offset(P, s, Q, drop)
                                + cfg.print_foot_margin))
+    else:  # no block's foot beyond the side to grow onto (a printed frame may stop it short)
+        least = min(least, cfg.print_far)
     if room < least or len(d) == 0:
         return 0.0
     moved = _moved(P, s, d)  # (D, 4, 3)
