@@ -591,6 +591,51 @@ def test_lateral_grow_moves_a_side_to_where_its_neighbouring_sides_end(book_scen
     assert grow(short, s, height=0.05) == 0.0
 
 
+def _stub_print(monkeypatch, heights, height=0.03, cfg=CFG) -> float:
+    """print_grow on a 20 × 14 cm cover 3 cm up, side 1 facing away (no page block shows),
+    with its image tests stubbed: the one edge beyond it 15 mm out, a neighbouring side
+    going on as an edge all the way, and the strips' print best at ``heights`` in the order
+    swept (the first look beyond the side, the strip inside the edge, the strip beyond it;
+    0: the desk)."""
+    P = np.array([[0.0, 0.0, 0.03], [0.2, 0.0, 0.03], [0.2, 0.14, 0.03], [0.0, 0.14, 0.03]])
+
+    def scores(moved, *a, **k):  # the edge 15 mm beyond side 1, a run of its own
+        d = np.linalg.norm(moved[:, 1] - P[1], axis=1)
+        return np.abs(d - 0.015) <= 0.0015, -np.abs(d - 0.015)
+
+    swept = iter(heights)
+
+    def sweep(*a, **k):  # best at the next height, NCC 0.9, 0.2 above the desk's
+        h = next(swept)
+        return Sweep(np.array([0.0, 0.03]), np.array([0.9, 0.7])) if h == 0 else Sweep(
+            np.array([0.0, h]), np.array([0.7, 0.9]))
+
+    monkeypatch.setattr(trim, "_side_scores", scores)
+    monkeypatch.setattr(trim, "_continued", lambda *a, **k: 1.0)
+    monkeypatch.setattr(trim, "_block_shows", lambda *a, **k: False)
+    monkeypatch.setattr(trim, "sweep_heights", sweep)
+    Q = np.array([[800.0, 0.0, 512.0, 0.0], [0.0, 800.0, 384.0, 0.0], [0.0, 0.0, 1.0, 1.0]])
+    none = {"left": None, "right": None}
+    return print_grow(P, 1, height, {"left": Q, "right": Q}, none, {"left": 1.0, "right": 1.0},
+                      none, np.array([0.0, 0.0, 1.0, 0.0]), ExtentConfig(), cfg)
+
+
+def test_print_grow_takes_an_edge_that_parts_the_cover_from_another_surface(monkeypatch):
+    # the cover's print up to the edge, the desk beyond: the edge is the cover's, 15 mm
+    # out (nearer than print_min: no page block's foot lies beyond a side facing away)
+    assert _stub_print(monkeypatch, [0.03, 0.03, 0.0]) == pytest.approx(0.015)
+    assert _stub_print(monkeypatch, [0.03, 0.03, 0.0], cfg=replace(CFG, print_far=0.02)) == 0.0
+    # the strip beyond at the strip inside's height, 5.5 mm under the cover's given height
+    # (more than half the tolerance of 8.9 mm, within it): more of the same surface, not
+    # its edge, under print_apart (half the tolerance)
+    assert _stub_print(monkeypatch, [0.03, 0.03, 0.03], height=0.0355) == 0.0
+    assert _stub_print(monkeypatch, [0.03, 0.03, 0.03], height=0.0355,
+                       cfg=replace(CFG, print_apart=0.0)) == pytest.approx(0.015)
+    assert _stub_print(monkeypatch, [0.03, 0.031, 0.026], height=0.0355) == pytest.approx(0.015)
+    # the strip beyond at the cover's given height: print, and no other edge
+    assert _stub_print(monkeypatch, [0.03, 0.03, 0.03]) == 0.0
+
+
 def _stub_lateral(monkeypatch: pytest.MonkeyPatch, *, ends: tuple[float, float] = (0.05, 0.05),
                   start: float = 0.0, hole: tuple[float, float] | None = None,
                   peak: float = 0.05, z: float = 0.0, sigma: float = np.inf,
@@ -766,6 +811,8 @@ def test_bad_settings_are_refused():
         TrimConfig(print_foot_margin=-0.001)
     with pytest.raises(ValueError, match="bad print_edges"):
         TrimConfig(print_edges=0)
+    with pytest.raises(ValueError, match="bad print_edges"):
+        TrimConfig(print_apart=-0.1)
     with pytest.raises(ValueError, match="bad grow_tries"):
         TrimConfig(grow_tries=0)
     with pytest.raises(ValueError, match="bad grow_retry"):

@@ -94,7 +94,8 @@ class TrimConfig:
     desk's; from ``print_min`` out, each ``print_piece`` of it best within the
     tolerance) and the strip
     ``print_beyond`` wide past the edge does not (best more than half the tolerance
-    off). The first ``print_piece`` beyond the side is looked at first: a side whose
+    off), nor within ``print_apart`` of the tolerance of where the strip between does.
+    The first ``print_piece`` beyond the side is looked at first: a side whose
     print there lines up at another height stays, unscanned. The first ``print_edges``
     edges beyond the side are tried, nearest first (an edge whose far side lines up at
     the cover's height was print; one whose far side shows no print leaves the side
@@ -149,6 +150,7 @@ class TrimConfig:
     print_min: float = 0.02  # at 15 mm covers nearly right grew onto their block's foot
     print_near: float = 0.008  # from the side, where past the block's foot (docs/stereo.md)
     print_far: float = 0.004  # where no block shows: a frame 3-20 mm in (stop 67)
+    print_apart: float = 0.5  # of the tolerance, beyond against inside (stop 67)
     print_foot_margin: float = 0.004
     print_min_ncc: float = 0.6
     print_margin: float = 0.05
@@ -189,7 +191,7 @@ class TrimConfig:
              and self.print_near > 0 and self.print_far > 0
              and self.print_foot_margin >= 0
              and self.print_beyond > 0 and self.print_piece > 0),
-            ("print_edges", self.print_edges >= 1),
+            ("print_edges", self.print_edges >= 1 and self.print_apart >= 0),
             ("grow_tries", self.grow_tries >= 1), ("grow_retry", self.grow_retry > 0),
             ("grow_absorb", self.grow_absorb >= 0),
             ("lateral_*", all(v >= 0 for v in (
@@ -206,7 +208,8 @@ class TrimConfig:
                              "grow_continuation, print_continuation and print_max_overlap "
                              "in [0, 1]; print_reach, print_min, print_near, print_far, "
                              "print_beyond and print_piece positive, print_foot_margin >= 0, "
-                             "print_edges >= 1, grow_tries >= 1, grow_retry > 0, "
+                             "print_edges >= 1, print_apart >= 0, grow_tries >= 1, "
+                             "grow_retry > 0, "
                              "grow_absorb >= 0, "
                              "the lateral_* settings >= 0 and lateral_min over 0.01, "
                              "print_min_ncc in "
@@ -481,7 +484,8 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
        within the tolerance; otherwise, or with no print in it, the side stays. A nearer
        edge is judged by the strip beyond it alone.
     4. Where the strip ``cfg.print_beyond`` wide beyond the edge sweeps best more than
-       half the tolerance from ``height``, the edge is the cover's: the side moves there
+       half the tolerance from ``height``, and more than ``cfg.print_apart`` of it from
+       the strip inside it (3), the edge is the cover's: the side moves there
        if it may be (3) and one neighbouring side goes on as an
        edge, in either image, along ``cfg.print_continuation`` of the way
        (:func:`_continued`); else it stays. Where that strip lines up at the cover's
@@ -549,6 +553,11 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
         if abs(beyond.best_height - height) > 0.5 * tol:
             if d[k] < least or _continued(P, moved[:k + 1], s, Q, grads, min_strength,
                                                    ext) < cfg.print_continuation:
+                return 0.0
+            # ...and it parts two surfaces: a strip beyond at the inside strip's own height
+            # is more of it (its height a few millimetres off the cover's given one)
+            if cfg.print_apart > 0 and \
+                    abs(beyond.best_height - inside.best_height) <= cfg.print_apart * tol:
                 return 0.0
             return float(d[k])
     return 0.0
