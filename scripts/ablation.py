@@ -73,7 +73,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("a skewed cover's side looked for out to its ends", ["unskew_reach=0"]),
     ("a cover its sides hold kept off the maps' height", ["trim.map_sides=0"]),
     ("three sides, facing or not, give the height", ["side_height.any_sides=0"]),
-    ("a side facing away grown by its print from 4 mm out", ["trim.print_far=0.02"]),
+    ("a side no page block shows grown by print nearer than 20 mm", ["trim.print_far=0.02"]),
     ("a print edge taken only where it parts two heights", ["trim.print_apart=0"]),
 ]
 

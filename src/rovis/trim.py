@@ -88,7 +88,8 @@ class TrimConfig:
     its foot would show (the nearer of those and ``print_min``); where none shows, at
     least ``print_far`` (the nearer of it and ``print_min``: a printed frame near the
     edge stops a side a few millimetres short, and no block's foot lies beyond a side
-    facing away). The strip between must
+    facing away; in effect about a centimetre, the strip between too narrow to sweep
+    under that). The strip between must
     line up between the images at the cover's height (the sweep's best within the
     tolerance above, NCC at least ``print_min_ncc`` and ``print_margin`` above the
     desk's; from ``print_min`` out, each ``print_piece`` of it best within the
@@ -149,8 +150,8 @@ class TrimConfig:
     print_reach: float = 0.15  # scene 48's print 11 cm beyond a band (docs/stereo.md)
     print_min: float = 0.02  # at 15 mm covers nearly right grew onto their block's foot
     print_near: float = 0.008  # from the side, where past the block's foot (docs/stereo.md)
-    print_far: float = 0.004  # where no block shows: a frame 3-20 mm in (stop 67)
-    print_apart: float = 0.5  # of the tolerance, beyond against inside (stop 67)
+    print_far: float = 0.004  # no block's foot to grow onto: any edge past the side's own
+    print_apart: float = 0.5  # of the tolerance, the strip beyond against the one inside
     print_foot_margin: float = 0.004
     print_min_ncc: float = 0.6
     print_margin: float = 0.05
@@ -191,7 +192,7 @@ class TrimConfig:
              and self.print_near > 0 and self.print_far > 0
              and self.print_foot_margin >= 0
              and self.print_beyond > 0 and self.print_piece > 0),
-            ("print_edges", self.print_edges >= 1 and self.print_apart >= 0),
+            ("print_edges", self.print_edges >= 1), ("print_apart", self.print_apart >= 0),
             ("grow_tries", self.grow_tries >= 1), ("grow_retry", self.grow_retry > 0),
             ("grow_absorb", self.grow_absorb >= 0),
             ("lateral_*", all(v >= 0 for v in (
