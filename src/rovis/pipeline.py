@@ -1607,6 +1607,9 @@ class Detector:
         cfg = self.cfg.trim
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         strength = self._edge_strength(segs)
+        # the sides facing away alone (side_height's three-sides fallback only answers a
+        # centimetre off the corners' height)
+        facing_away = replace(self.cfg.side_height, any_sides=0)
         out = []
         for pair, book in found:
             P = geometry.triangulate(rig.Q_L, rig.Q_R, pair.left, pair.right)
@@ -1616,10 +1619,8 @@ class Detector:
                 # two or more of its sides that do not face the cameras, placed by stereo,
                 # agree on the height it has, not on the maps': the maps' patch there is
                 # another surface's (rt1 scene 67's book 2, 34 mm as both sides and the
-                # truth say, moved to 47); the sides facing away alone (side_height's
-                # three-sides fallback only answers a centimetre off the corners' height)
-                sides = height_from_sides(P, Q, grads, desk_plane,
-                                          replace(self.cfg.side_height, any_sides=0))
+                # truth say, moved to 47)
+                sides = height_from_sides(P, Q, grads, desk_plane, facing_away)
                 if (sides is not None and abs(sides - height) <= cfg.map_sides
                         and abs(sides - h) > cfg.map_sides):
                     h = None
