@@ -10,8 +10,9 @@ import pytest
 from rovis import geometry
 from rovis.pipeline import DetectConfig, Detector, Pair, with_settings
 from rovis.segment import gradients
-from rovis.sweep import (SweepConfig, contradicts, find_by_print, high_pass, on_plane,
-                         print_goes_on, print_height, sweep_heights, texture_height)
+from rovis.sweep import (SweepConfig, _plane_frame, contradicts, contradicts_beyond_quarter,
+                         find_by_print, high_pass, on_plane, plane_homography, print_goes_on,
+                         print_height, sweep_heights, texture_height)
 from rovis.synth import render, sample_scene
 
 from conftest import ideal_images
@@ -51,6 +52,71 @@ def test_the_print_of_a_cover_gives_its_height(scene):
 def test_a_plain_cover_testifies_to_nothing(scene):
     _, sweep, at = _sweep_of(scene, "plain", 0.03)
     assert not contradicts(sweep, at)
+
+
+def _occluded_plain_cover(rig, corner_only, cover_h=0.010, print_h=0.045):
+    """High-passed images of a plain cover ``cover_h`` metres high (only sensor noise, drawn
+    apart in each image) with a pattern ``print_h`` metres high over it: over one corner of
+    it (a taller neighbour's print), or over all of it (the cover's own print, at another
+    height than its corners say); the cover's corners in both ideal images and the desk
+    plane."""
+    import cv2
+
+    desk = np.array([0.0, 0.0, 1.0, 0.0])  # the rig's world is the desk's frame
+    centre, half = np.array([0.45, 0.35]), np.array([0.08, 0.06])  # metres
+    P = np.array([[-1, 1], [1, 1], [1, -1], [-1, -1]]) * half + centre
+    P = np.column_stack([P, np.full(4, cover_h)])
+    left_quad, right_quad = (geometry.project(Q, P) for Q in (rig.Q_L, rig.Q_R))
+    w, h = rig.image_size
+    rng = np.random.default_rng(3)
+    pattern = cv2.GaussianBlur(rng.normal(0, 40, (h, w)).astype(np.float32), (0, 0), 1.0)
+    mask = np.zeros((h, w), np.float32)
+    corner = left_quad[0] + 0.45 * (left_quad[2] - left_quad[0])  # a bit short of the centre
+    region = left_quad if not corner_only else np.array(
+        [left_quad[0], 0.5 * (left_quad[0] + left_quad[1]), corner,
+         0.5 * (left_quad[0] + left_quad[3])])
+    cv2.fillConvexPoly(mask, np.rint(region).astype(np.int32), 1.0)
+    on_desk, n, e1, e2 = _plane_frame(desk)
+    H_L, H_R = (plane_homography(Q, on_desk + print_h * n, e1, e2) for Q in (rig.Q_L, rig.Q_R))
+    seen = pattern * mask
+    left = seen + rng.normal(0, 1.0, (h, w)).astype(np.float32)
+    right = (cv2.warpPerspective(seen, H_R @ np.linalg.inv(H_L), (w, h))
+             + rng.normal(0, 1.0, (h, w)).astype(np.float32))
+    return {"left": left, "right": right}, Pair(left_quad, right_quad, 1.0, 0.0), desk
+
+
+@pytest.mark.parametrize("corner_only", [True, False])
+def test_a_pattern_over_one_corner_does_not_move_a_plain_cover(rig, corner_only):
+    texture, pair, desk = _occluded_plain_cover(rig, corner_only)
+    sweep, at = texture_height(texture["left"], texture["right"], rig.Q_L, rig.Q_R, pair.left,
+                               desk, 0.010)
+    # the whole quad's sweep reads the pattern's height either way
+    assert sweep is not None and abs(sweep.best_height - 0.045) < 0.002  # metres
+    assert contradicts(sweep, at)
+    beyond = contradicts_beyond_quarter(texture["left"], texture["right"], rig.Q_L, rig.Q_R,
+                                        pair.left, desk, sweep.best_height, 0.010)
+    assert beyond is not corner_only  # without the corner, nothing tells another height
+    for settings in ([], ["sweep.spread=false"]):
+        det = Detector(rig, with_settings(DetectConfig(), settings))
+        _, book, why = det._reconstruct_or_why(rig, pair, desk, texture)
+        kept = book is not None and bool(abs(book.pose.size[2] - 0.010) < 0.002)
+        assert kept == (corner_only and det.cfg.sweep.spread), why
+
+
+def test_a_pattern_over_one_corner_below_the_cover_still_moves_it(rig):
+    # nothing lower than a cover shows through it: a quad whose corner holds a print
+    # lower than its corners say reaches beyond the cover, and the move is not asked again
+    texture, pair, desk = _occluded_plain_cover(rig, True, cover_h=0.045, print_h=0.010)
+    sweep, at = texture_height(texture["left"], texture["right"], rig.Q_L, rig.Q_R, pair.left,
+                               desk, 0.045)
+    assert sweep is not None and contradicts(sweep, at)
+    # the quarter test alone would keep it
+    assert not contradicts_beyond_quarter(texture["left"], texture["right"], rig.Q_L, rig.Q_R,
+                                          pair.left, desk, sweep.best_height, 0.045)
+    for settings in ([], ["sweep.spread=false"]):
+        det = Detector(rig, with_settings(DetectConfig(), settings))
+        _, book, why = det._reconstruct_or_why(rig, pair, desk, texture)
+        assert book is None or abs(book.pose.size[2] - 0.045) > 0.02, why  # moved or dropped
 
 
 def test_pixels_laid_on_a_plane_project_back_to_themselves(rig):

@@ -56,7 +56,8 @@ from rovis.trim import (TrimConfig, cut_cover, grow_run, height_profile, lateral
 from rovis.stereo import (Match, PoolPairs, StereoConfig, _point_segment_distance,
                           find_in_other_view, flat_rectangle, match_quads, pool_pairs,
                           side_lengths_and_corner_cos)
-from rovis.sweep import (Sweep, SweepConfig, _plane_frame, contradicts, find_by_print, high_pass,
+from rovis.sweep import (Sweep, SweepConfig, _plane_frame, contradicts,
+                         contradicts_beyond_quarter, find_by_print, high_pass,
                          on_plane, print_goes_on, print_height, sweep_heights, texture_height)
 from rovis.undistort import IdealView
 
@@ -3068,8 +3069,15 @@ class Detector:
             sweep, at_corners = texture_height(texture["left"], texture["right"], rig.Q_L,
                                                rig.Q_R, c_left, desk_plane, pose.size[2],
                                                self.cfg.sweep)
-            if contradicts(sweep, at_corners, self.cfg.sweep):
-                assert sweep is not None
+            # ...beyond its most textured quarter too, where it would move the cover up
+            # (sweep.spread: a taller neighbour's edge over one corner of a plain cover;
+            # nothing lower shows through a cover: lower, the quad reaches beyond it)
+            if sweep is not None and contradicts(sweep, at_corners, self.cfg.sweep) and (
+                    not self.cfg.sweep.spread or sweep.best_height < pose.size[2]
+                    or sweep.best_ncc < self.cfg.sweep.min_ncc_to_move
+                    or contradicts_beyond_quarter(
+                        texture["left"], texture["right"], rig.Q_L, rig.Q_R, c_left,
+                        desk_plane, sweep.best_height, pose.size[2], self.cfg.sweep)):
                 P = self._on_plane(rig, c_left, c_right, desk_plane, sweep)
                 if P is None:
                     return pair, None, "texture height"

@@ -52,7 +52,11 @@ class SweepConfig:
     no evidence). The cover is then moved to the texture's
     height if its best NCC reaches ``min_ncc_to_move`` (one flat surface) and both images'
     quads, laid on that plane, agree within ``max_spread`` at every corner; otherwise it is
-    dropped.
+    dropped. ``spread``: a move up must be told beyond the cover's most textured quarter
+    too (:func:`contradicts_beyond_quarter`), or the cover stays: a taller neighbour's
+    edge or print over one corner of a plain cover is no print of it. (Nothing lower
+    than a cover shows through it, and a weaker match drops the cover either way: only
+    moves up are asked.)
 
     ``transfer``: a cover found in one image only, that the one-image search of
     :mod:`rovis.stereo` cannot find in the other, is placed by its print
@@ -78,6 +82,7 @@ class SweepConfig:
     peak_apart: float = 0.02
     strip_px: tuple[float, float] = (3.0, 10.0)
     strip_min_ncc: float = 0.3
+    spread: bool = True
 
     def __post_init__(self) -> None:
         # (cv2.remap takes maps of at most 32767 columns and rows)
@@ -169,14 +174,19 @@ def sweep_heights(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: Ar
     quad = np.asarray(quad_left, dtype=np.float64)
     if quad.shape != (4, 2):
         raise ValueError(f"quad_left: expected shape (4, 2), got {quad.shape}")
-    h_img, w_img = left.shape
     # (a cover is swept again and again: texture_height sweeps it twice, each step's
     # checks once more)
     samples = _samples_of(quad.tobytes(), left.shape, inset, max_samples)
     if samples is None:
         return None
-    xs, ys = samples
+    return _sweep_pixels(left, right, Q_L, Q_R, *samples, desk_plane, heights)
 
+
+def _sweep_pixels(left: NDArray[np.float32], right: NDArray[np.float32], Q_L: ArrayLike,
+                  Q_R: ArrayLike, xs: NDArray[np.intp], ys: NDArray[np.intp],
+                  desk_plane: ArrayLike, heights: ArrayLike) -> Sweep | None:
+    """:func:`sweep_heights` over the left pixels (xs, ys), each shape (N,)."""
+    h_img, w_img = left.shape
     # Each left pixel through each plane into the right image: a plane's homography to the
     # left pixels (H_L) and to the right (H_R) give right ← left = H_R · H_L⁻¹.
     heights = np.asarray(heights, dtype=np.float64)
@@ -442,6 +452,45 @@ def contradicts(sweep: Sweep | None, ncc_at_corners: float, cfg: SweepConfig = S
             and sweep.best_ncc - ncc_at_corners > cfg.min_gap)  # False for NaN
 
 
+def contradicts_beyond_quarter(left: NDArray[np.float32], right: NDArray[np.float32],
+                               Q_L: ArrayLike, Q_R: ArrayLike, quad_left: ArrayLike,
+                               desk_plane: ArrayLike, best_height: float, corner_height: float,
+                               cfg: SweepConfig = SweepConfig()) -> bool:
+    """:func:`contradicts` again without the quarter of the cover with the most texture.
+
+    A plain cover has no texture of its own, and where a taller neighbour hides one of its
+    corners, that neighbour's edge or print inside the quad is all the texture there is:
+    it matches at the neighbour's height, and would move the cover there (build/t1d scene
+    7 book 2, a plain cover 13 mm high under a corner of a 48 mm book: moved to 45 mm). A
+    cover's own print tells its height over more of it than one quarter. The quad is cut
+    into quarters by the lines joining its opposite sides' midpoints; the pixels
+    :func:`sweep_heights` compares, less the quarter where their high-passed values vary
+    most, must still match at ``best_height`` (metres above the desk) well enough
+    (``cfg.min_ncc``) and better than at ``corner_height``: the rest of a plain cover
+    matches at neither, and the rest of one whose corners are right matches better there.
+    Other arguments as :func:`sweep_heights`.
+    """
+    quad = np.asarray(quad_left, dtype=np.float64)
+    samples = _samples_of(quad.tobytes(), left.shape, cfg.inset, cfg.max_samples)
+    if samples is None:
+        return False
+    xs, ys = samples
+    centre = quad.mean(axis=0)
+    across = (quad[1] + quad[2]) - (quad[0] + quad[3])  # from side 3 towards side 1
+    along = (quad[2] + quad[3]) - (quad[0] + quad[1])  # from side 0 towards side 2
+    p = np.stack([xs, ys], axis=1) - centre
+    quarter = 2 * (p @ across > 0) + (p @ along > 0)  # (N,) in 0..3
+    a = left[ys, xs].astype(np.float64)
+    energy = np.bincount(quarter, weights=(a - a.mean()) ** 2, minlength=4)
+    rest = quarter != int(np.argmax(energy))
+    sweep = _sweep_pixels(left, right, Q_L, Q_R, xs[rest], ys[rest], desk_plane,
+                          [best_height, corner_height])
+    if sweep is None:
+        return False
+    return bool(sweep.ncc[0] >= cfg.min_ncc and sweep.ncc[0] > sweep.ncc[1])
+
+
 __all__ = ["SweepConfig", "Sweep", "find_by_print", "high_pass", "on_plane", "plane_homography",
            "print_goes_on", "print_height", "side_strip_ncc", "sweep_heights",
-           "texture_height", "contradicts"]
+           "texture_height", "contradicts",
+           "contradicts_beyond_quarter"]
