@@ -54,17 +54,19 @@ def test_a_plain_cover_testifies_to_nothing(scene):
     assert not contradicts(sweep, at)
 
 
-def _occluded_plain_cover(rig, corner_only, cover_h=0.010, print_h=0.045):
+def _occluded_plain_cover(rig, corner_only, cover_h=0.010, print_h=0.045, yaw_deg=0.0,
+                          centre=(0.45, 0.35)):
     """High-passed images of a plain cover ``cover_h`` metres high (only sensor noise, drawn
     apart in each image) with a pattern ``print_h`` metres high over it: over one corner of
     it (a taller neighbour's print), or over all of it (the cover's own print, at another
-    height than its corners say); the cover's corners in both ideal images and the desk
-    plane."""
+    height than its corners say). Returns the images (by camera), the cover's pair (its
+    corners in both ideal images) and the desk plane."""
     import cv2
 
     desk = np.array([0.0, 0.0, 1.0, 0.0])  # the rig's world is the desk's frame
-    centre, half = np.array([0.45, 0.35]), np.array([0.08, 0.06])  # metres
-    P = np.array([[-1, 1], [1, 1], [1, -1], [-1, -1]]) * half + centre
+    c, s = np.cos(np.radians(yaw_deg)), np.sin(np.radians(yaw_deg))
+    P = np.array([[-1, 1], [1, 1], [1, -1], [-1, -1]]) * [0.08, 0.06]  # metres
+    P = P @ np.array([[c, s], [-s, c]]) + centre
     P = np.column_stack([P, np.full(4, cover_h)])
     left_quad, right_quad = (geometry.project(Q, P) for Q in (rig.Q_L, rig.Q_R))
     w, h = rig.image_size
@@ -86,8 +88,12 @@ def _occluded_plain_cover(rig, corner_only, cover_h=0.010, print_h=0.045):
 
 
 @pytest.mark.parametrize("corner_only", [True, False])
-def test_a_pattern_over_one_corner_does_not_move_a_plain_cover(rig, corner_only):
-    texture, pair, desk = _occluded_plain_cover(rig, corner_only)
+@pytest.mark.parametrize("yaw_deg, centre", [(0.0, (0.45, 0.35)), (25.0, (0.3, 0.45))])
+def test_a_pattern_over_one_corner_does_not_move_a_plain_cover(rig, corner_only, yaw_deg,
+                                                               centre):
+    # (turned and off the middle: the quarters are cut along the midpoint lines, which
+    # are not at right angles in the image then)
+    texture, pair, desk = _occluded_plain_cover(rig, corner_only, yaw_deg=yaw_deg, centre=centre)
     sweep, at = texture_height(texture["left"], texture["right"], rig.Q_L, rig.Q_R, pair.left,
                                desk, 0.010)
     # the whole quad's sweep reads the pattern's height either way
@@ -96,11 +102,21 @@ def test_a_pattern_over_one_corner_does_not_move_a_plain_cover(rig, corner_only)
     beyond = contradicts_beyond_quarter(texture["left"], texture["right"], rig.Q_L, rig.Q_R,
                                         pair.left, desk, sweep.best_height, 0.010)
     assert beyond is not corner_only  # without the corner, nothing tells another height
-    for settings in ([], ["sweep.spread=false"]):
+    for settings in ([], ["sweep.beyond_quarter=false"]):
         det = Detector(rig, with_settings(DetectConfig(), settings))
         _, book, why = det._reconstruct_or_why(rig, pair, desk, texture)
-        kept = book is not None and bool(abs(book.pose.size[2] - 0.010) < 0.002)
-        assert kept == (corner_only and det.cfg.sweep.spread), why
+        assert book is not None, why
+        # kept where it is, or moved up to the pattern
+        stays = corner_only and det.cfg.sweep.beyond_quarter
+        assert abs(book.pose.size[2] - (0.010 if stays else 0.045)) < 0.002  # metres
+
+
+def test_a_weak_match_up_still_drops_the_cover(rig):
+    # only a move up is asked again: a match too weak to move the cover drops it as before
+    texture, pair, desk = _occluded_plain_cover(rig, True)
+    det = Detector(rig, with_settings(DetectConfig(), ["sweep.min_ncc_to_move=1.01"]))
+    _, book, why = det._reconstruct_or_why(rig, pair, desk, texture)
+    assert book is None and why == "texture height"
 
 
 def test_a_pattern_over_one_corner_below_the_cover_still_moves_it(rig):
@@ -113,10 +129,11 @@ def test_a_pattern_over_one_corner_below_the_cover_still_moves_it(rig):
     # the quarter test alone would keep it
     assert not contradicts_beyond_quarter(texture["left"], texture["right"], rig.Q_L, rig.Q_R,
                                           pair.left, desk, sweep.best_height, 0.045)
-    for settings in ([], ["sweep.spread=false"]):
+    for settings in ([], ["sweep.beyond_quarter=false"]):
         det = Detector(rig, with_settings(DetectConfig(), settings))
         _, book, why = det._reconstruct_or_why(rig, pair, desk, texture)
-        assert book is None or abs(book.pose.size[2] - 0.045) > 0.02, why  # moved or dropped
+        assert book is not None, why
+        assert abs(book.pose.size[2] - 0.010) < 0.002  # metres: moved down to the print
 
 
 def test_pixels_laid_on_a_plane_project_back_to_themselves(rig):

@@ -3070,12 +3070,12 @@ class Detector:
                                                rig.Q_R, c_left, desk_plane, pose.size[2],
                                                self.cfg.sweep)
             # ...beyond its most textured quarter too, where it would move the cover up
-            # (sweep.spread: a taller neighbour's edge over one corner of a plain cover;
-            # nothing lower shows through a cover: lower, the quad reaches beyond it)
+            # (sweep.beyond_quarter: a taller neighbour's edge over one corner of a plain
+            # cover; nothing lower shows through a cover: lower, the quad reaches beyond it)
+            up = (sweep is not None and sweep.best_height > pose.size[2]
+                  and sweep.best_ncc >= self.cfg.sweep.min_ncc_to_move)
             if sweep is not None and contradicts(sweep, at_corners, self.cfg.sweep) and (
-                    not self.cfg.sweep.spread or sweep.best_height < pose.size[2]
-                    or sweep.best_ncc < self.cfg.sweep.min_ncc_to_move
-                    or contradicts_beyond_quarter(
+                    not (up and self.cfg.sweep.beyond_quarter) or contradicts_beyond_quarter(
                         texture["left"], texture["right"], rig.Q_L, rig.Q_R, c_left,
                         desk_plane, sweep.best_height, pose.size[2], self.cfg.sweep)):
                 P = self._on_plane(rig, c_left, c_right, desk_plane, sweep)

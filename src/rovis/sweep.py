@@ -18,6 +18,9 @@ otherwise (reason ``"texture height"``): a weaker match is a quad over more than
 surface.
 
 A plain cover has no texture to match: its best NCC stays low and it testifies to nothing.
+Where a taller neighbour hides one of its corners, that neighbour's edge or print is all the
+texture inside the quad, and it matches at the neighbour's height: a move up must hold
+beyond the cover's most textured quarter too (:func:`contradicts_beyond_quarter`).
 
 The same sweep places a printed cover that one image's segmentation found and the other's
 did not (:func:`find_by_print`), where the edge-based one-image search of
@@ -52,7 +55,7 @@ class SweepConfig:
     no evidence). The cover is then moved to the texture's
     height if its best NCC reaches ``min_ncc_to_move`` (one flat surface) and both images'
     quads, laid on that plane, agree within ``max_spread`` at every corner; otherwise it is
-    dropped. ``spread``: a move up must be told beyond the cover's most textured quarter
+    dropped. ``beyond_quarter``: a move up must be told beyond the cover's most textured quarter
     too (:func:`contradicts_beyond_quarter`), or the cover stays: a taller neighbour's
     edge or print over one corner of a plain cover is no print of it. (Nothing lower
     than a cover shows through it, and a weaker match drops the cover either way: only
@@ -82,7 +85,7 @@ class SweepConfig:
     peak_apart: float = 0.02
     strip_px: tuple[float, float] = (3.0, 10.0)
     strip_min_ncc: float = 0.3
-    spread: bool = True
+    beyond_quarter: bool = True
 
     def __post_init__(self) -> None:
         # (cv2.remap takes maps of at most 32767 columns and rows)
@@ -456,7 +459,8 @@ def contradicts_beyond_quarter(left: NDArray[np.float32], right: NDArray[np.floa
                                Q_L: ArrayLike, Q_R: ArrayLike, quad_left: ArrayLike,
                                desk_plane: ArrayLike, best_height: float, corner_height: float,
                                cfg: SweepConfig = SweepConfig()) -> bool:
-    """:func:`contradicts` again without the quarter of the cover with the most texture.
+    """Whether the cover's texture, less its most textured quarter, still puts it at
+    ``best_height`` rather than at ``corner_height`` (metres above the desk).
 
     A plain cover has no texture of its own, and where a taller neighbour hides one of its
     corners, that neighbour's edge or print inside the quad is all the texture there is:
@@ -468,21 +472,32 @@ def contradicts_beyond_quarter(left: NDArray[np.float32], right: NDArray[np.floa
     most, must still match at ``best_height`` (metres above the desk) well enough
     (``cfg.min_ncc``) and better than at ``corner_height``: the rest of a plain cover
     matches at neither, and the rest of one whose corners are right matches better there.
-    Other arguments as :func:`sweep_heights`.
+    Other arguments as :func:`sweep_heights`. (A neighbour along a whole side reaches
+    into two quarters: that is not what this asks.)
+
+    Returns
+    -------
+    bool
+        False also where the rest gives no sweep (under 50 pixels, none of its texture, or
+        some of it outside the right image): the cover stays.
     """
     quad = np.asarray(quad_left, dtype=np.float64)
     samples = _samples_of(quad.tobytes(), left.shape, cfg.inset, cfg.max_samples)
     if samples is None:
         return False
     xs, ys = samples
-    centre = quad.mean(axis=0)
-    across = (quad[1] + quad[2]) - (quad[0] + quad[3])  # from side 3 towards side 1
-    along = (quad[2] + quad[3]) - (quad[0] + quad[1])  # from side 0 towards side 2
-    p = np.stack([xs, ys], axis=1) - centre
-    quarter = 2 * (p @ across > 0) + (p @ along > 0)  # (N,) in 0..3
+    # each pixel's coordinates along the lines joining opposite sides' midpoints (through
+    # the corners' mean): from side 3 towards side 1, and from side 0 towards side 2
+    across = 0.5 * ((quad[1] + quad[2]) - (quad[0] + quad[3]))
+    along = 0.5 * ((quad[2] + quad[3]) - (quad[0] + quad[1]))
+    p = np.stack([xs, ys]) - quad.mean(axis=0)[:, None]  # (2, N)
+    s, t = np.linalg.solve(np.column_stack([across, along]), p)
+    quarter = 2 * (s > 0) + (t > 0)  # (N,) in 0..3
     a = left[ys, xs].astype(np.float64)
     energy = np.bincount(quarter, weights=(a - a.mean()) ** 2, minlength=4)
     rest = quarter != int(np.argmax(energy))
+    if np.count_nonzero(rest) < 50:  # (as _samples_of asks of a whole cover)
+        return False
     sweep = _sweep_pixels(left, right, Q_L, Q_R, xs[rest], ys[rest], desk_plane,
                           [best_height, corner_height])
     if sweep is None:
