@@ -75,7 +75,8 @@ STEPS: list[tuple[str, list[str]]] = [
     ("three sides, facing or not, give the height", ["side_height.any_sides=0"]),
     ("a side no page block shows grown by print nearer than 20 mm", ["trim.print_far=0.02"]),
     ("a print edge taken only where it parts two heights", ["trim.print_apart=0"]),
-    ("a move up by print told beyond its most textured quarter", ["sweep.beyond_quarter=false"]),
+    ("a move up by print told beyond its most textured quarter (or half)",
+     ["sweep.beyond_quarter=false"]),
 ]
 
 

@@ -54,12 +54,12 @@ def test_a_plain_cover_testifies_to_nothing(scene):
     assert not contradicts(sweep, at)
 
 
-def _occluded_plain_cover(rig, corner_only, cover_h=0.010, print_h=0.045, yaw_deg=0.0,
+def _occluded_plain_cover(rig, over, cover_h=0.010, print_h=0.045, yaw_deg=0.0,
                           centre=(0.45, 0.35)):
     """High-passed images of a plain cover ``cover_h`` metres high (only sensor noise, drawn
-    apart in each image) with a pattern ``print_h`` metres high over it: over one corner of
-    it (a taller neighbour's print), or over all of it (the cover's own print, at another
-    height than its corners say). Returns the images (by camera), the cover's pair (its
+    apart in each image) with a pattern ``print_h`` metres high ``over`` it: over one
+    ``"corner"`` of it or along one ``"side"`` (a taller neighbour's print), or over
+    ``"all"`` of it (the cover's own print, at another height than its corners say). Returns the images (by camera), the cover's pair (its
     corners in both ideal images) and the desk plane."""
     import cv2
 
@@ -73,10 +73,13 @@ def _occluded_plain_cover(rig, corner_only, cover_h=0.010, print_h=0.045, yaw_de
     rng = np.random.default_rng(3)
     pattern = cv2.GaussianBlur(rng.normal(0, 40, (h, w)).astype(np.float32), (0, 0), 1.0)
     mask = np.zeros((h, w), np.float32)
-    corner = left_quad[0] + 0.45 * (left_quad[2] - left_quad[0])  # a bit short of the centre
-    region = left_quad if not corner_only else np.array(
-        [left_quad[0], 0.5 * (left_quad[0] + left_quad[1]), corner,
-         0.5 * (left_quad[0] + left_quad[3])])
+    q = left_quad
+    corner = q[0] + 0.45 * (q[2] - q[0])  # a bit short of the centre
+    region = {"corner": [q[0], 0.5 * (q[0] + q[1]), corner, 0.5 * (q[0] + q[3])],
+              # along side 0, a bit short of the midpoint line
+              "side": [q[0], q[1], q[1] + 0.45 * (q[2] - q[1]), q[0] + 0.45 * (q[3] - q[0])],
+              "all": q}[over]
+    region = np.array(region)
     cv2.fillConvexPoly(mask, np.rint(region).astype(np.int32), 1.0)
     on_desk, n, e1, e2 = _plane_frame(desk)
     H_L, H_R = (plane_homography(Q, on_desk + print_h * n, e1, e2) for Q in (rig.Q_L, rig.Q_R))
@@ -87,13 +90,14 @@ def _occluded_plain_cover(rig, corner_only, cover_h=0.010, print_h=0.045, yaw_de
     return {"left": left, "right": right}, Pair(left_quad, right_quad, 1.0, 0.0), desk
 
 
-@pytest.mark.parametrize("corner_only", [True, False])
+@pytest.mark.parametrize("over", ["corner", "side", "all"])
 @pytest.mark.parametrize("yaw_deg, centre", [(0.0, (0.45, 0.35)), (25.0, (0.3, 0.45))])
-def test_a_pattern_over_one_corner_does_not_move_a_plain_cover(rig, corner_only, yaw_deg,
-                                                               centre):
+def test_a_pattern_over_a_corner_or_a_side_does_not_move_a_plain_cover(rig, over, yaw_deg,
+                                                                        centre):
     # (turned and off the middle: the quarters are cut along the midpoint lines, which
     # are not at right angles in the image then)
-    texture, pair, desk = _occluded_plain_cover(rig, corner_only, yaw_deg=yaw_deg, centre=centre)
+    texture, pair, desk = _occluded_plain_cover(rig, over, yaw_deg=yaw_deg, centre=centre)
+    neighbour = over != "all"
     sweep, at = texture_height(texture["left"], texture["right"], rig.Q_L, rig.Q_R, pair.left,
                                desk, 0.010)
     # the whole quad's sweep reads the pattern's height either way
@@ -101,19 +105,19 @@ def test_a_pattern_over_one_corner_does_not_move_a_plain_cover(rig, corner_only,
     assert contradicts(sweep, at)
     beyond = contradicts_beyond_quarter(texture["left"], texture["right"], rig.Q_L, rig.Q_R,
                                         pair.left, desk, sweep.best_height, 0.010)
-    assert beyond is not corner_only  # without the corner, nothing tells another height
+    assert beyond is not neighbour  # without the corner or side, nothing tells another height
     for settings in ([], ["sweep.beyond_quarter=false"]):
         det = Detector(rig, with_settings(DetectConfig(), settings))
         _, book, why = det._reconstruct_or_why(rig, pair, desk, texture)
         assert book is not None, why
         # kept where it is, or moved up to the pattern
-        stays = corner_only and det.cfg.sweep.beyond_quarter
+        stays = neighbour and det.cfg.sweep.beyond_quarter
         assert abs(book.pose.size[2] - (0.010 if stays else 0.045)) < 0.002  # metres
 
 
 def test_a_weak_match_up_still_drops_the_cover(rig):
     # only a move up is asked again: a match too weak to move the cover drops it as before
-    texture, pair, desk = _occluded_plain_cover(rig, True)
+    texture, pair, desk = _occluded_plain_cover(rig, "corner")
     det = Detector(rig, with_settings(DetectConfig(), ["sweep.min_ncc_to_move=1.01"]))
     _, book, why = det._reconstruct_or_why(rig, pair, desk, texture)
     assert book is None and why == "texture height"
@@ -122,7 +126,7 @@ def test_a_weak_match_up_still_drops_the_cover(rig):
 def test_a_pattern_over_one_corner_below_the_cover_still_moves_it(rig):
     # nothing lower than a cover shows through it: a quad whose corner holds a print
     # lower than its corners say reaches beyond the cover, and the move is not asked again
-    texture, pair, desk = _occluded_plain_cover(rig, True, cover_h=0.045, print_h=0.010)
+    texture, pair, desk = _occluded_plain_cover(rig, "corner", cover_h=0.045, print_h=0.010)
     sweep, at = texture_height(texture["left"], texture["right"], rig.Q_L, rig.Q_R, pair.left,
                                desk, 0.045)
     assert sweep is not None and contradicts(sweep, at)
