@@ -59,8 +59,9 @@ def _occluded_plain_cover(rig, over, cover_h=0.010, print_h=0.045, yaw_deg=0.0,
     """High-passed images of a plain cover ``cover_h`` metres high (only sensor noise, drawn
     apart in each image) with a pattern ``print_h`` metres high ``over`` it: over one
     ``"corner"`` of it or along one ``"side"`` (a taller neighbour's print), or over
-    ``"all"`` of it (the cover's own print, at another height than its corners say). Returns the images (by camera), the cover's pair (its
-    corners in both ideal images) and the desk plane."""
+    ``"all"`` of it (the cover's own print, at another height than its corners say).
+    Returns the images (by camera), the cover's pair (its corners in both ideal images)
+    and the desk plane."""
     import cv2
 
     desk = np.array([0.0, 0.0, 1.0, 0.0])  # the rig's world is the desk's frame

@@ -58,9 +58,8 @@ class SweepConfig:
     dropped. ``beyond_quarter``: a move up must be told beyond the cover's most textured
     quarter too, or half where its texture fills one (:func:`contradicts_beyond_quarter`),
     or the cover stays: a taller neighbour's edge or print over one corner or along one
-    side of a plain cover is no print of it. (Nothing lower
-    than a cover shows through it, and a weaker match drops the cover either way: only
-    moves up are asked.)
+    side of a plain cover is no print of it. (Nothing lower than a cover shows through
+    it, and a weaker match drops the cover either way: only moves up are asked.)
 
     ``transfer``: a cover found in one image only, that the one-image search of
     :mod:`rovis.stereo` cannot find in the other, is placed by its print
