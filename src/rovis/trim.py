@@ -89,15 +89,14 @@ class TrimConfig:
     least ``print_far`` (the nearer of it and ``print_min``: a printed frame near the
     edge stops a side a few millimetres short, and no block's foot lies beyond a side
     facing away; in effect about a centimetre, the strip between too narrow to sweep
-    under that). The strip between must
-    line up between the images at the cover's height (the sweep's best within the
-    tolerance above, NCC at least ``print_min_ncc`` and ``print_margin`` above the
-    desk's; from ``print_min`` out, each ``print_piece`` of it best within the
-    tolerance) and the strip
-    ``print_beyond`` wide past the edge does not (best more than half the tolerance
-    off), nor within ``print_apart`` of the tolerance of where the strip between does.
-    The first ``print_piece`` beyond the side is looked at first: a side whose
-    print there lines up at another height stays, unscanned. The first ``print_edges``
+    under that). The strip between must line up between the images at the cover's
+    height (the sweep's best within the tolerance above, NCC at least ``print_min_ncc``
+    and ``print_margin`` above the desk's; from ``print_min`` out, each ``print_piece``
+    of it best within the tolerance) and the strip ``print_beyond`` wide past the edge
+    does not (best more than half the tolerance off), nor within ``print_apart`` of the
+    tolerance of where the strip between does. The first ``print_piece`` beyond the side
+    is looked at first: a side whose print there lines up at another height stays,
+    unscanned. The first ``print_edges``
     edges beyond the side are tried, nearest first (an edge whose far side lines up at
     the cover's height was print; one whose far side shows no print leaves the side
     where it is). One neighbouring side must go on as an edge, in either image, along
