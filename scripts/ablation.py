@@ -77,6 +77,8 @@ STEPS: list[tuple[str, list[str]]] = [
     ("a print edge taken only where it parts two heights", ["trim.print_apart=0"]),
     ("a move up by print told beyond its most textured quarter (or half)",
      ["sweep.beyond_quarter=false"]),
+    ("a completed cover's unseen side beside a taller book not asked for print",
+     ["complete.print_taller=false"]),
 ]
 
 

@@ -27,6 +27,9 @@ image; ``, under a book``: one of them lies under a book found in the end, by mo
 
     python scripts/stereo_losses.py build/results/table1 --n 40
     python scripts/stereo_losses.py build/rt1 --pools
+
+With ``--list``, each lost book is also named, one line each: its scene, its index in the
+scene's truth.json, its cover, its height and its fate (and with ``--pools`` its place).
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ from __future__ import annotations
 import argparse
 import json
 from collections import Counter
+from pathlib import Path
 
 import numpy as np
 
@@ -111,6 +115,13 @@ def pool_fate(detector: Detector, left: np.ndarray, right: np.ndarray,
     return out
 
 
+def lost_line(scene: str, k: int, book: dict, what: str, place: str | None = None) -> str:
+    """``--list``'s line for book ``k`` (its index in the scene's truth.json) of ``scene``:
+    its cover, height and fate (and its place in the pools, if known)."""
+    return (f"{scene} book {k}: {book.get('cover', '?')} cover, {book['size'][2] * 1e3:.0f} mm "
+            f"high, {what}" + (f", {place}" if place is not None else ""))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dataset", help="a folder written by rovis synth")
@@ -119,6 +130,7 @@ def main() -> None:
                     help="a DetectConfig setting, as rovis eval --set")
     ap.add_argument("--pools", action="store_true",
                     help="also place each lost book by the candidate pools (slower)")
+    ap.add_argument("--list", action="store_true", help="also name each lost book")
     args = ap.parse_args()
     scenes = list_scenes(args.dataset)[:args.n]
     rig = load_calibration(f"{args.dataset}/calib.yaml")
@@ -131,14 +143,20 @@ def main() -> None:
         result = detector.detect(left, right)
         matched = {t for t, _ in match_books([b["center"] for b in doc["books"]],
                                              [o.pose.center for o in result.objects])}
-        lost = []
+        lost = []  # (index in truth.json, book, fate)
         for k_book, book in enumerate(doc["books"]):
             if min(book["visible_left"], book["visible_right"]) >= 0.9:
-                fates[fate(result, rig, book, k_book in matched)] += 1
+                what = fate(result, rig, book, k_book in matched)
+                fates[what] += 1
                 if k_book not in matched:
-                    lost.append(book)
-        if args.pools and lost:
-            pools.update(pool_fate(detector, left, right, result, lost))
+                    lost.append((k_book, book, what))
+        places = (pool_fate(detector, left, right, result, [b for _, b, _ in lost])
+                  if args.pools and lost else [])
+        pools.update(places)
+        if args.list:
+            for i, (k_book, book, what) in enumerate(lost):
+                print("\r" + lost_line(Path(scene).name, k_book, book, what,
+                                       places[i] if places else None))
         print(f"\r{k + 1}/{len(scenes)} scenes", end="", flush=True)
     total = sum(fates.values())
     print(f"\n\n{total} books >= 90 % visible in both images, {len(scenes)} scenes of "

@@ -36,3 +36,11 @@ def test_a_book_the_pools_hold_and_one_they_do_not_are_told_apart():
     assert len(found.objects) == 1
     assert stereo_losses.pool_fate(detector, r.left, r.right, found, [book]) == [
         "pools: both, under a book"]
+
+
+def test_a_lost_book_is_named_on_one_line():
+    book = {"cover": "photo", "size": [0.201, 0.111, 0.0114]}
+    assert stereo_losses.lost_line("0024", 2, book, "lost: neither", "pools: both") == (
+        "0024 book 2: photo cover, 11 mm high, lost: neither, pools: both")
+    assert stereo_losses.lost_line("0024", 2, book, "lost: neither") == (
+        "0024 book 2: photo cover, 11 mm high, lost: neither")

@@ -1164,6 +1164,13 @@ class CompleteConfig:
     (no page block of its own to show); the seen sides next to it edges up to its corners
     and no further; and the cover plain inside (at most ``plain_share`` of its middle at
     the Canny low threshold).
+
+    ``print_taller`` (beyond the paper): the pipeline asks whether a completed cover's print
+    goes on beyond an unseen side (:func:`rovis.sweep.print_goes_on`: then the side lies on
+    a band of the print, and the cover is not taken). A side whose strip beyond it
+    (``SweepConfig.strip_px``) reaches the outline of a book found ``taller_by`` or more
+    higher than the cover is not asked: that book's page block rises through the cover's
+    height, and matches there as the print would.
     """
 
     enabled: bool = True
@@ -1180,6 +1187,8 @@ class CompleteConfig:
     ends_agree: float = 0.005
     ends_spread: float = 0.015
     plain_share: float = 0.02
+    print_taller: bool = True
+    taller_by: float = 0.01
     sweep_margin: float = 0.02
     sweep_window: float = 0.015
 

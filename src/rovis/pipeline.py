@@ -1227,6 +1227,19 @@ class Detector:
                                  _outlines(Q[cam], cam, found + out, up)).sum() >= 2
                        for cam in Q)
 
+        def unseen_asked(a: int, P: NDArray[np.float64], height: float) -> list[int]:
+            # the unseen sides of the completed cover P (4, 3) whose print is asked about:
+            # not one whose strip beyond reaches a book found taller (complete.print_taller)
+            sides = np.flatnonzero(~(seen(a)["left"] | seen(a)["right"]))
+            taller = [(p, b) for p, b in found + out
+                      if b.pose.size[2] >= height + cfg.complete.taller_by]
+            if cfg.complete.print_taller and taller and len(sides):
+                beside = _sides_on(geometry.project(Q["left"], P),
+                                   _outlines(Q["left"], "left", taller, up),
+                                   tol_px=cfg.sweep.strip_px[1])
+                sides = sides[~beside[sides]]
+            return sides.tolist()
+
         def complete(a: int) -> bool:
             if not completable(a):
                 return False
@@ -1257,7 +1270,7 @@ class Detector:
             if texture is not None and asked and asked[0] is not None and print_goes_on(
                     texture["left"], texture["right"], Q["left"], Q["right"],
                     geometry.project(Q["left"], P), desk_plane, asked[0], cfg.sweep,
-                    sides=np.flatnonzero(~(seen(a)["left"] | seen(a)["right"])).tolist()):
+                    sides=unseen_asked(a, P, asked[0])):
                 return False  # an unseen side placed on a band of the print
             if texture is not None and self._print_on_desk(rig, geometry.project(Q["left"], P),
                                                            desk_plane, texture):
