@@ -37,7 +37,6 @@ from __future__ import annotations
 import argparse
 import json
 from collections import Counter
-from pathlib import Path
 
 import numpy as np
 
@@ -155,7 +154,7 @@ def main() -> None:
         pools.update(places)
         if args.list:
             for i, (k_book, book, what) in enumerate(lost):
-                print("\r" + lost_line(Path(scene).name, k_book, book, what,
+                print("\r" + lost_line(scene.name, k_book, book, what,
                                        places[i] if places else None))
         print(f"\r{k + 1}/{len(scenes)} scenes", end="", flush=True)
     total = sum(fates.values())

@@ -1167,10 +1167,10 @@ class CompleteConfig:
 
     ``print_taller`` (beyond the paper): the pipeline asks whether a completed cover's print
     goes on beyond an unseen side (:func:`rovis.sweep.print_goes_on`: then the side lies on
-    a band of the print, and the cover is not taken). A side whose strip beyond it
-    (``SweepConfig.strip_px``) reaches the outline of a book found ``taller_by`` or more
-    higher than the cover is not asked: that book's page block rises through the cover's
-    height, and matches there as the print would.
+    a band of the print, and the cover is not taken). A side half or more of which lies on
+    or within ``SweepConfig.strip_px``'s far bound of the left image's outline of a book
+    found ``taller_by`` or more higher than the cover is not asked: that book's page block
+    rises through the cover's height, and matches there as the print would.
     """
 
     enabled: bool = True

@@ -1229,8 +1229,10 @@ class Detector:
 
         def unseen_asked(a: int, P: NDArray[np.float64], height: float) -> list[int]:
             # the unseen sides of the completed cover P (4, 3) whose print is asked about:
-            # not one whose strip beyond reaches a book found taller (complete.print_taller)
-            sides = np.flatnonzero(~(seen(a)["left"] | seen(a)["right"]))
+            # not one along a book found taller, half of it within the strip's far bound of
+            # that book's outline in the left image (complete.print_taller)
+            sides_seen = seen(a)
+            sides = np.flatnonzero(~(sides_seen["left"] | sides_seen["right"]))
             taller = [(p, b) for p, b in found + out
                       if b.pose.size[2] >= height + cfg.complete.taller_by]
             if cfg.complete.print_taller and taller and len(sides):
