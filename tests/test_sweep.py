@@ -286,11 +286,11 @@ def t1d_scenes():
 @pytest.mark.parametrize("i, book, side", [(72, 0, 3), (95, 0, 2), (95, 6, 0)])
 def test_a_taller_neighbour_beyond_a_side_matches_as_the_print_going_on(t1d_scenes, i, book,
                                                                          side):
-    # a true cover's side next to a taller book (a 9 and a 10 mm cover beside 40-50 mm
-    # books, a 42 mm one beside a 58 mm one): the strip beyond matches at the cover's height
-    # better than on the desk, as the print going on would (the page block rises through
-    # that height). Not beside it, it does not. (The premise of complete.print_taller, not
-    # a test of it: test_a_completed_cover_beside_taller_books_is_kept below is)
+    # a true cover's side next to a taller book (covers of 9, 42 and 10 mm; scene 72's
+    # beside a 37 mm book): the strip beyond matches at the cover's height better than on
+    # the desk, as the print going on would (the page block rises through that height).
+    # Beyond its other sides it does not. (The premise of complete.print_taller, not a test
+    # of it: test_a_completed_cover_beside_taller_books_is_kept below is)
     sc, r, texture = t1d_scenes[i]
     b = r.truth["books"][book]
     quad = geometry.project(sc.rig.Q_L, np.array(b["corners"]))
@@ -309,8 +309,8 @@ def rt1_scene_24():
 def test_a_completed_cover_beside_taller_books_is_kept(rt1_scene_24):
     # book 2, a photo cover 201 x 111 x 11 mm: each image saw two of its sides, and the
     # cover completed in 3D (rovis.extent.complete_open) has its unseen side along two
-    # taller books found (33 and 58 mm), whose strip there matches at 11 mm as its print
-    # going on would. Kept with complete.print_taller (that side not asked), refused as
+    # taller books found (33 and 58 mm), whose strip there matches at the cover's height as
+    # its print going on would. Kept with complete.print_taller (that side not asked), refused as
     # the print going on without it, and lost.
     sc, r = rt1_scene_24
     xy = np.asarray(r.truth["books"][2]["center"][:2])
