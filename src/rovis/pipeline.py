@@ -1233,9 +1233,11 @@ class Detector:
             # that book's outline in the left image (complete.print_taller)
             sides_seen = seen(a)
             sides = np.flatnonzero(~(sides_seen["left"] | sides_seen["right"]))
+            if not cfg.complete.print_taller or len(sides) == 0:
+                return sides.tolist()
             taller = [(p, b) for p, b in found + out
                       if b.pose.size[2] >= height + cfg.complete.taller_by]
-            if cfg.complete.print_taller and taller and len(sides):
+            if taller:
                 beside = _sides_on(geometry.project(Q["left"], P),
                                    _outlines(Q["left"], "left", taller, up),
                                    tol_px=cfg.sweep.strip_px[1])
