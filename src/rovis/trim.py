@@ -96,10 +96,12 @@ class TrimConfig:
     does not (best more than half the tolerance off), nor within ``print_apart`` of the
     tolerance of where the strip between does. The first ``print_piece`` beyond the side
     is looked at first: a side whose print there lines up at another height stays,
-    unscanned. The first ``print_edges``
-    edges beyond the side are tried, nearest first (an edge whose far side lines up at
-    the cover's height was print; one whose far side shows no print leaves the side
-    where it is). One neighbouring side must go on as an edge, in either image, along
+    unscanned. The first ``print_edges`` edges beyond the side are tried, nearest first
+    (an edge whose far side lines up at the cover's height was print; one whose far side
+    shows no print leaves the side where it is). The run of offsets that starts at the
+    side's own edge may hold more: where the edge strength between two peaks in it falls
+    below ``print_dip`` of the weaker, the later is another edge (0: none; a line printed
+    near the cover's edge, blurred, runs into it). One neighbouring side must go on as an edge, in either image, along
     ``print_continuation`` of the way, and the strip added may lie over another book by
     at most ``print_max_overlap`` of it (in the left image).
 
@@ -158,6 +160,7 @@ class TrimConfig:
     print_beyond: float = 0.01
     print_piece: float = 0.012
     print_edges: int = 2
+    print_dip: float = 0.5  # a line printed near the edge: its run and the edge's merge
     print_continuation: float = 0.5
     grow_tries: int = 3  # asks for a side's grow, a refused move's nearer edge after it
     grow_retry: float = 0.005  # how far short of a refused move the next ask ends
@@ -192,6 +195,7 @@ class TrimConfig:
              and self.print_foot_margin >= 0
              and self.print_beyond > 0 and self.print_piece > 0),
             ("print_edges", self.print_edges >= 1), ("print_apart", self.print_apart >= 0),
+            ("print_dip", 0 <= self.print_dip < 1),
             ("grow_tries", self.grow_tries >= 1), ("grow_retry", self.grow_retry > 0),
             ("grow_absorb", self.grow_absorb >= 0),
             ("lateral_*", all(v >= 0 for v in (
@@ -208,7 +212,8 @@ class TrimConfig:
                              "grow_continuation, print_continuation and print_max_overlap "
                              "in [0, 1]; print_reach, print_min, print_near, print_far, "
                              "print_beyond and print_piece positive, print_foot_margin >= 0, "
-                             "print_edges >= 1, print_apart >= 0, grow_tries >= 1, "
+                             "print_edges >= 1, print_apart >= 0, print_dip in [0, 1), "
+                             "grow_tries >= 1, "
                              "grow_retry > 0, "
                              "grow_absorb >= 0, "
                              "the lateral_* settings >= 0 and lateral_min over 0.01, "
@@ -468,7 +473,9 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
     2. The edges both images show beyond the side (:func:`rovis.extent._side_scores`,
        offsets 1 mm apart from 4 mm out, up to ``cfg.print_reach`` or what makes the book
        ``ext.max_side`` long; a run of offsets from the first one is the side's own edge,
-       not looked at) are taken nearest first, at most ``cfg.print_edges`` of them, each
+       not looked at, but for the edges after a dip in it, :func:`_run_peaks` with
+       ``cfg.print_dip``: a line printed near the cover's edge and the edge, blurred,
+       make one run) are taken nearest first, at most ``cfg.print_edges`` of them, each
        at its strongest offset.
     3. An edge may be the cover's from ``cfg.print_min`` out; where a page block shows
        below the side (:func:`rovis.extent._block_shows`), from ``cfg.print_near`` out
@@ -530,8 +537,9 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
     edge[both], right = _side_scores(moved[both], a, b, Q, grads, min_strength, ext,
                                      ("right",))
     strength[both] += right
-    peaks = [first + int(np.argmax(strength[first:last + 1]))  # each run's strongest
-             for first, last in _runs(edge) if first > 0]  # (from 0: the side's own edge)
+    peaks = [k for first, last in _runs(edge)  # each run's strongest; from 0, the side's own
+             for k in ([first + int(np.argmax(strength[first:last + 1]))] if first > 0
+                       else _run_peaks(strength, first, last, cfg.print_dip)[1:])]
     for k in peaks[:cfg.print_edges]:
         if d[k] >= least:
             inside = sweep(gap, d[k] - gap)
@@ -584,6 +592,27 @@ def _foot_offset(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64
         crossing = centre + (up @ (mid - centre)) / (up @ ray) * ray
         far = max(far, float((crossing - mid) @ out))
     return far
+
+
+def _run_peaks(strength: NDArray[np.float64], first: int, last: int,
+               dip: float) -> list[int]:
+    """The edges in one run of offsets ``first``..``last`` (indices into ``strength``, the
+    edge strength at each offset): its strongest, or, where the strength between two of its
+    local peaks falls below ``dip`` of the weaker of them, each such peak (0: one edge). A
+    line printed a few millimetres inside the cover's edge, blurred, makes one run of
+    offsets with the edge."""
+    peaks: list[int] = []
+    top, low = first, np.inf  # the current edge's peak; the least strength since it
+    for i in range(first + 1, last + 1):
+        peak = strength[i] >= strength[i - 1] and (i == last or strength[i] >= strength[i + 1])
+        if strength[i] > strength[top] and low >= dip * strength[top]:
+            top, low = i, np.inf  # no dip since: the same edge, stronger
+        elif peak and low < dip * min(strength[top], strength[i]):
+            peaks.append(top)  # a dip, then another peak: another edge
+            top, low = i, np.inf
+        else:
+            low = min(low, strength[i])
+    return peaks + [top]
 
 
 def _runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
