@@ -101,9 +101,9 @@ class TrimConfig:
     shows no print leaves the side where it is). The run of offsets that starts at the
     side's own edge may hold more: where the edge strength between two peaks in it falls
     below ``print_dip`` of the weaker, the later is another edge (0: none; a line printed
-    near the cover's edge, blurred, runs into it). One neighbouring side must go on as an edge, in either image, along
-    ``print_continuation`` of the way, and the strip added may lie over another book by
-    at most ``print_max_overlap`` of it (in the left image).
+    near the cover's edge, blurred, runs into it). One neighbouring side must go on as an
+    edge, in either image, along ``print_continuation`` of the way, and the strip added
+    may lie over another book by at most ``print_max_overlap`` of it (in the left image).
 
     Either grow's move refused by these guards (the strip over another book, the new side
     on the desk, no edge at its page block's foot) is asked again, ending ``grow_retry``
