@@ -79,6 +79,7 @@ STEPS: list[tuple[str, list[str]]] = [
      ["sweep.beyond_quarter=false"]),
     ("a completed cover's unseen side beside a taller book not asked for print",
      ["complete.print_taller=false"]),
+    ("a print edge run into the side's own tried", ["trim.print_dip=0"]),
 ]
 
 
