@@ -593,19 +593,19 @@ def test_lateral_grow_moves_a_side_to_where_its_neighbouring_sides_end(book_scen
 
 def _stub_print(monkeypatch, heights, height=0.03, cfg=CFG, merged=False) -> float:
     """print_grow on a 20 × 14 cm cover 3 cm up, side 1 facing away (no page block shows),
-    with its image tests stubbed: the one edge beyond it 15 mm out, a neighbouring side
+    with its image tests stubbed: one edge beyond it, 15 mm out, a neighbouring side
     going on as an edge all the way, and the strips' print best at ``heights`` in the order
     swept (the first look beyond the side, the strip inside the edge, the strip beyond it;
-    0: the desk). ``merged``: the edge's run of offsets starts at the side's own edge,
-    its strength peaking 5 and 15 mm out, a tenth of that between (a line printed near
-    the cover's edge)."""
+    0: the desk). The edge is a run of offsets of its own, or, ``merged``, the end of the
+    run that starts at the side's own edge: its strength peaking 5 and 15 mm out, a tenth
+    of that between (a line printed near the cover's edge)."""
     P = np.array([[0.0, 0.0, 0.03], [0.2, 0.0, 0.03], [0.2, 0.14, 0.03], [0.0, 0.14, 0.03]])
 
-    def scores(moved, *a, **k):  # the edge 15 mm beyond side 1, a run of its own
+    def scores(moved, *a, **k):  # (edge at each offset beyond side 1, its strength)
         d = np.linalg.norm(moved[:, 1] - P[1], axis=1)
         if merged:
-            return d <= 0.0165, np.maximum(np.exp(-((d - 0.005) / 0.002) ** 2),
-                                           np.exp(-((d - 0.015) / 0.002) ** 2))
+            return d <= 0.0165, np.maximum(np.exp(-((d - 0.005) / 0.0033) ** 2),
+                                           np.exp(-((d - 0.015) / 0.0033) ** 2))
         return np.abs(d - 0.015) <= 0.0015, -np.abs(d - 0.015)
 
     swept = iter(heights)
@@ -663,6 +663,10 @@ def test_run_peaks_parts_a_run_at_its_dips():
     assert _run_peaks(np.array([5.0, 1.0, 4.0, 6.0, 9.0, 3.0]), 0, 5, 0.5) == [0, 4]
     # a shoulder (no dip below half the weaker) is the same edge
     assert _run_peaks(np.array([5.0, 4.0, 6.0, 2.0]), 0, 3, 0.5) == [2]
+    # one offset, a plateau (its first), a falling run (its start): one edge
+    assert _run_peaks(np.array([5.0]), 0, 0, 0.5) == [0]
+    assert _run_peaks(np.array([5.0, 5.0, 5.0]), 0, 2, 0.5) == [0]
+    assert _run_peaks(np.array([9.0, 7.0, 5.0, 3.0, 1.0]), 0, 4, 0.5) == [0]
 
 
 def _stub_lateral(monkeypatch: pytest.MonkeyPatch, *, ends: tuple[float, float] = (0.05, 0.05),
@@ -842,8 +846,6 @@ def test_a_side_on_a_line_printed_near_the_edge_is_grown_to_the_edge():
 def test_bad_settings_are_refused():
     with pytest.raises(ValueError, match="strip"):
         TrimConfig(strip=0.0)
-    with pytest.raises(ValueError, match="print_dip"):
-        TrimConfig(print_dip=1.0)
     with pytest.raises(ValueError, match="bad map_sides"):
         TrimConfig(map_sides=-0.001)
     with pytest.raises(ValueError, match="min_other"):
@@ -864,6 +866,9 @@ def test_bad_settings_are_refused():
         TrimConfig(print_edges=0)
     with pytest.raises(ValueError, match="bad print_apart"):
         TrimConfig(print_apart=-0.1)
+    for dip in (-0.1, 1.1, float("nan")):
+        with pytest.raises(ValueError, match="bad print_dip"):
+            TrimConfig(print_dip=dip)
     with pytest.raises(ValueError, match="bad grow_tries"):
         TrimConfig(grow_tries=0)
     with pytest.raises(ValueError, match="bad grow_retry"):
