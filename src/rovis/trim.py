@@ -160,7 +160,7 @@ class TrimConfig:
     print_beyond: float = 0.01
     print_piece: float = 0.012
     print_edges: int = 2
-    print_dip: float = 0.5  # a line printed near the edge: its run and the edge's merge
+    print_dip: float = 0.5  # of the weaker peak: a printed line's run merged with the edge's
     print_continuation: float = 0.5
     grow_tries: int = 3  # asks for a side's grow, a refused move's nearer edge after it
     grow_retry: float = 0.005  # how far short of a refused move the next ask ends
@@ -195,7 +195,7 @@ class TrimConfig:
              and self.print_foot_margin >= 0
              and self.print_beyond > 0 and self.print_piece > 0),
             ("print_edges", self.print_edges >= 1), ("print_apart", self.print_apart >= 0),
-            ("print_dip", 0 <= self.print_dip < 1),
+            ("print_dip", 0 <= self.print_dip <= 1),
             ("grow_tries", self.grow_tries >= 1), ("grow_retry", self.grow_retry > 0),
             ("grow_absorb", self.grow_absorb >= 0),
             ("lateral_*", all(v >= 0 for v in (
@@ -212,7 +212,7 @@ class TrimConfig:
                              "grow_continuation, print_continuation and print_max_overlap "
                              "in [0, 1]; print_reach, print_min, print_near, print_far, "
                              "print_beyond and print_piece positive, print_foot_margin >= 0, "
-                             "print_edges >= 1, print_apart >= 0, print_dip in [0, 1), "
+                             "print_edges >= 1, print_apart >= 0, print_dip in [0, 1], "
                              "grow_tries >= 1, "
                              "grow_retry > 0, "
                              "grow_absorb >= 0, "
@@ -537,7 +537,9 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
     edge[both], right = _side_scores(moved[both], a, b, Q, grads, min_strength, ext,
                                      ("right",))
     strength[both] += right
-    peaks = [k for first, last in _runs(edge)  # each run's strongest; from 0, the side's own
+    # each run's strongest offset; the run from 0 is the side's own edge, its peaks after a
+    # dip alone looked at (a line printed near the cover's edge runs into it)
+    peaks = [k for first, last in _runs(edge)
              for k in ([first + int(np.argmax(strength[first:last + 1]))] if first > 0
                        else _run_peaks(strength, first, last, cfg.print_dip)[1:])]
     for k in peaks[:cfg.print_edges]:
@@ -597,10 +599,14 @@ def _foot_offset(P: NDArray[np.float64], s: int, Q: dict[str, NDArray[np.float64
 def _run_peaks(strength: NDArray[np.float64], first: int, last: int,
                dip: float) -> list[int]:
     """The edges in one run of offsets ``first``..``last`` (indices into ``strength``, the
-    edge strength at each offset): its strongest, or, where the strength between two of its
-    local peaks falls below ``dip`` of the weaker of them, each such peak (0: one edge). A
-    line printed a few millimetres inside the cover's edge, blurred, makes one run of
-    offsets with the edge."""
+    edge strength at each offset, none negative), nearest first: its strongest, or, where
+    the strength between two of its local peaks falls below ``dip`` of the weaker of them,
+    each such peak (0: one edge). A run that falls from its first offset has its peak
+    there (an edge before it: :func:`print_grow` drops that of the side's own). A line
+    printed a few millimetres inside the cover's edge, blurred, makes one run of offsets
+    with the edge."""
+    if dip <= 0:
+        return [first + int(np.argmax(strength[first:last + 1]))]
     peaks: list[int] = []
     top, low = first, np.inf  # the current edge's peak; the least strength since it
     for i in range(first + 1, last + 1):
