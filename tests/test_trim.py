@@ -823,7 +823,7 @@ def test_a_refused_grow_is_asked_again_for_a_nearer_edge():
     assert off > 0.05 and size[0] < 0.1
 
 
-def test_a_side_on_a_line_printed_near_the_edge_is_grown_to_the_edge():
+def test_a_side_on_its_print_near_the_edge_is_grown_to_the_edge():
     # `python scripts/results.py`'s table1 scene 48 (rovis synth --protocol table1 --seed
     # 1): book 0, a printed cover 271 x 139 x 14 mm, is found 13.6 mm narrow, one side on an
     # edge in its print 13 mm inside the cover's; the edge strength beyond that side runs
@@ -840,7 +840,7 @@ def test_a_side_on_a_line_printed_near_the_edge_is_grown_to_the_edge():
     off, err = nearest([])
     assert off < 0.003 and np.abs(err).max() < 0.003  # m
     off, err = nearest(["trim.print_dip=0"])
-    assert off > 0.005 and err[0] < -0.01  # the width short by the margin
+    assert off > 0.005 and err[0] < -0.01  # the width short by the strip beyond that side
 
 
 def test_bad_settings_are_refused():
