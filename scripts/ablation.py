@@ -80,6 +80,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("a completed cover's unseen side beside a taller book not asked for print",
      ["complete.print_taller=false"]),
     ("a print edge run into the side's own tried", ["trim.print_dip=0"]),
+    ("a third print edge tried", ["trim.print_edges=2"]),
 ]
 
 

@@ -97,8 +97,9 @@ class TrimConfig:
     tolerance of where the strip between does. The first ``print_piece`` beyond the side
     is looked at first: a side whose print there lines up at another height stays,
     unscanned. The first ``print_edges`` edges beyond the side are tried, nearest first
-    (an edge whose far side lines up at the cover's height was print; one whose far side
-    shows no print leaves the side where it is). The run of offsets that starts at the
+    (an edge whose far side lines up at the cover's height, or at the strip between's
+    within ``print_apart``, was print; one whose far side shows no print leaves the side
+    where it is). The run of offsets that starts at the
     side's own edge may hold more: where the edge strength between two peaks in it falls
     below ``print_dip`` of the weaker, the later is another edge (0: none; a line printed
     near the cover's edge, blurred, runs into it). One neighbouring side must go on as an
@@ -159,7 +160,7 @@ class TrimConfig:
     print_max_overlap: float = 0.1
     print_beyond: float = 0.01
     print_piece: float = 0.012
-    print_edges: int = 2
+    print_edges: int = 3  # a picture's two edges may lie before the cover's (stop 70)
     print_dip: float = 0.5  # of the weaker peak: a printed line's run merged with the edge's
     print_continuation: float = 0.5
     grow_tries: int = 3  # asks for a side's grow, a refused move's nearer edge after it
@@ -491,13 +492,15 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
        within the tolerance; otherwise, or with no print in it, the side stays. A nearer
        edge is judged by the strip beyond it alone.
     4. Where the strip ``cfg.print_beyond`` wide beyond the edge sweeps best more than
-       half the tolerance from ``height``, and more than ``cfg.print_apart`` of it from
-       the strip inside it (3), the edge is the cover's: the side moves there
-       if it may be (3) and one neighbouring side goes on as an
-       edge, in either image, along ``cfg.print_continuation`` of the way
-       (:func:`_continued`); else it stays. Where that strip lines up at the cover's
-       height, the edge was print, and the next is tried; where it shows no print,
-       nothing tells, and the side stays.
+       half the tolerance from ``height``, the edge may be the cover's: it must be far
+       enough out (3) and one neighbouring side must go on as an edge, in either image,
+       along ``cfg.print_continuation`` of the way (:func:`_continued`), else the side
+       stays; and where that strip lies more than ``cfg.print_apart`` of the tolerance
+       from the strip inside it (3), the side moves there. Where that strip lines up at
+       the cover's height, or within ``cfg.print_apart`` of the strip inside it (one
+       surface both sides of the edge, a few millimetres off the given height), the edge
+       was print, and the next is tried; where it shows no print, nothing tells, and the
+       side stays.
     """
     a, b = s, (s + 1) % 4
     room = min(cfg.print_reach, limit,
@@ -565,10 +568,11 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
                                                    ext) < cfg.print_continuation:
                 return 0.0
             # ...and it parts two surfaces: a strip beyond at the inside strip's own height
-            # is more of it (its height a few millimetres off the cover's given one)
+            # is more of it (its height a few millimetres off the cover's given one): print,
+            # and the next edge is tried
             if cfg.print_apart > 0 and \
                     abs(beyond.best_height - inside.best_height) <= cfg.print_apart * tol:
-                return 0.0
+                continue
             return float(d[k])
     return 0.0
 
