@@ -600,7 +600,7 @@ def _stub_print(monkeypatch, heights, height=0.03, cfg=CFG, merged=False,
     0: the desk). The edge is a run of offsets of its own, or, ``merged``, the end of the
     run that starts at the side's own edge: its strength peaking 5 and 15 mm out, a tenth
     of that between (a line printed near the cover's edge). ``edges``: the offsets of
-    the edges in runs of their own instead (metres)."""
+    the edges in runs of their own (metres; the one 15 mm out by default)."""
     P = np.array([[0.0, 0.0, 0.03], [0.2, 0.0, 0.03], [0.2, 0.14, 0.03], [0.0, 0.14, 0.03]])
 
     def scores(moved, *a, **k):  # (edge at each offset beyond side 1, its strength)
@@ -637,7 +637,7 @@ def test_print_grow_takes_an_edge_that_parts_the_cover_from_another_surface(monk
     assert _stub_print(monkeypatch, [0.03, 0.0], cfg=replace(CFG, print_far=0.02)) == 0.0
     # the strip beyond at the strip inside's height, 5.5 mm under the cover's given height
     # (more than half the tolerance of 8.9 mm, within it): more of the same surface, not
-    # its edge, under print_apart (half the tolerance)
+    # its edge, under print_apart (half the tolerance): print, and no other edge
     assert _stub_print(monkeypatch, [0.03, 0.03, 0.03], height=0.0355) == 0.0
     assert _stub_print(monkeypatch, [0.03, 0.03, 0.03], height=0.0355,
                        cfg=replace(CFG, print_apart=0.0)) == pytest.approx(0.015)
@@ -646,7 +646,7 @@ def test_print_grow_takes_an_edge_that_parts_the_cover_from_another_surface(monk
     # the strip beyond at the cover's given height: print, and no other edge
     assert _stub_print(monkeypatch, [0.03, 0.03, 0.03]) == 0.0
     # under print_apart, print too: the next edge, 25 mm out, is tried (the strip inside
-    # it, its two 12 mm pieces, the desk beyond)
+    # it, its two pieces of 10.5 mm, the desk beyond)
     two = [0.03, 0.03, 0.03, 0.03, 0.03, 0.03, 0.0]
     assert _stub_print(monkeypatch, two, height=0.0355,
                        edges=(0.015, 0.025)) == pytest.approx(0.025)
