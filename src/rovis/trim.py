@@ -97,14 +97,15 @@ class TrimConfig:
     tolerance of where the strip between does. The first ``print_piece`` beyond the side
     is looked at first: a side whose print there lines up at another height stays,
     unscanned. The first ``print_edges`` edges beyond the side are tried, nearest first
-    (an edge whose far side lines up at the cover's height, or at the strip between's
-    within ``print_apart``, was print; one whose far side shows no print leaves the side
-    where it is). The run of offsets that starts at the
-    side's own edge may hold more: where the edge strength between two peaks in it falls
-    below ``print_dip`` of the weaker, the later is another edge (0: none; a line printed
-    near the cover's edge, blurred, runs into it). One neighbouring side must go on as an
-    edge, in either image, along ``print_continuation`` of the way, and the strip added
-    may lie over another book by at most ``print_max_overlap`` of it (in the left image).
+    (an edge whose far side lines up at the cover's height was print, and so was one far
+    enough out, a neighbouring side going on to it, whose far side lies within
+    ``print_apart`` of the tolerance of the strip between's; one whose far side shows no
+    print leaves the side where it is). The run of offsets that starts at the side's own
+    edge may hold more: where the edge strength between two peaks in it falls below
+    ``print_dip`` of the weaker, the later is another edge (0: none; a line printed near
+    the cover's edge, blurred, runs into it). One neighbouring side must go on as an edge,
+    in either image, along ``print_continuation`` of the way, and the strip added may lie
+    over another book by at most ``print_max_overlap`` of it (in the left image).
 
     Either grow's move refused by these guards (the strip over another book, the new side
     on the desk, no edge at its page block's foot) is asked again, ending ``grow_retry``
@@ -491,16 +492,15 @@ def print_grow(P: NDArray[np.float64], s: int, height: float, Q: dict[str, NDArr
        ``cfg.print_min`` out each ``cfg.print_piece`` of it (that shows print) best
        within the tolerance; otherwise, or with no print in it, the side stays. A nearer
        edge is judged by the strip beyond it alone.
-    4. Where the strip ``cfg.print_beyond`` wide beyond the edge sweeps best more than
-       half the tolerance from ``height``, the edge may be the cover's: it must be far
-       enough out (3) and one neighbouring side must go on as an edge, in either image,
-       along ``cfg.print_continuation`` of the way (:func:`_continued`), else the side
-       stays; and where that strip lies more than ``cfg.print_apart`` of the tolerance
-       from the strip inside it (3), the side moves there. Where that strip lines up at
-       the cover's height, or within ``cfg.print_apart`` of the strip inside it (one
-       surface both sides of the edge, a few millimetres off the given height), the edge
-       was print, and the next is tried; where it shows no print, nothing tells, and the
-       side stays.
+    4. Where the strip ``cfg.print_beyond`` wide beyond the edge shows no print, nothing
+       tells, and the side stays; where it sweeps best within half the tolerance of
+       ``height``, the edge was print, and the next is tried. Otherwise the edge must be
+       far enough out (3) and one neighbouring side must go on as an edge, in either
+       image, along ``cfg.print_continuation`` of the way (:func:`_continued`), or the
+       side stays; then, where that strip lies within ``cfg.print_apart`` of the
+       tolerance of the strip inside it (3) (one surface both sides of the edge, a few
+       millimetres off the given height; 0: not asked), the edge was print too, and the
+       next is tried; else the side moves there.
     """
     a, b = s, (s + 1) % 4
     room = min(cfg.print_reach, limit,
