@@ -19,7 +19,7 @@ from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book, Light
 from rovis.synth import textures
 from rovis.synth.textures import COVER_PX_PER_M, CoverSpec
-from rovis.sweep import on_plane
+from rovis.sweep import SweepConfig, high_pass, on_plane
 
 from conftest import ideal_images
 from dataset_scene import dataset_scene
@@ -1464,29 +1464,32 @@ def test_a_frame_count_out_of_range_grows_nothing_it_cannot_back(framed_book, si
     assert (G is None) == (sides == 5)
 
 
-def _behind_a_taller_book(gap):
-    """A light plain book 1.5 cm thick, a 4.5 cm one in front of it, ``gap`` metres apart
-    (flush at 0), alone on the desk at 500 lx: the low book's corners (4, 3), the taller
-    one's, the projections, gradients, desk plane, the low book's side facing the taller
-    one (and the cameras), and how far the taller book's top edge, seen from the left
-    camera on the low cover's plane, lies inward of that side (metres; negative: outward,
-    the side in view)."""
+def _behind_a_taller_book(gap, kind="plain", width=0.16):
+    """A light book 1.5 cm thick (a plain cover, or ``kind``), 22 cm wide, a 4.5 cm one
+    ``width`` metres wide in front of it, ``gap`` metres apart (flush at 0), alone on the
+    desk at 500 lx: the low book's corners
+    (4, 3), the taller one's, the projections, gradients, desk plane, the low book's side
+    facing the taller one (and the cameras), how far the taller book's top edge, seen from
+    the left camera on the low cover's plane, lies inward of that side (metres; negative:
+    outward, the side in view), and both ideal images' print (the sweep's high-pass)."""
     low = Book(center=(0.45, 0.42, 0.015), yaw_deg=0.0, size=(0.22, 0.15, 0.015),
-               cover=CoverSpec(kind="plain", albedo=0.6, seed=1))
+               cover=CoverSpec(kind=kind, albedo=0.6, seed=1))
     near = 0.42 - 0.075  # y of the low book's side towards the cameras
-    tall = Book(center=(0.45, near - gap - 0.045, 0.045), yaw_deg=0.0, size=(0.16, 0.09, 0.045),
+    tall = Book(center=(0.45, near - gap - 0.045, 0.045), yaw_deg=0.0, size=(width, 0.09, 0.045),
                 cover=CoverSpec(kind="plain", albedo=0.75, seed=2))
-    r, grads, Q, _ = _rendered([low, tall])
+    r, grads, Q, rig = _rendered([low, tall])
     P, PB = (np.array(b["corners"]) for b in r.truth["books"])
     desk = np.asarray(r.truth["desk_plane"])
     s = next(k for k in range(4) if abs(0.5 * (P[k, 1] + P[(k + 1) % 4, 1]) - near) < 1e-6)
     t = next(k for k in range(4) if abs(0.5 * (PB[k, 1] + PB[(k + 1) % 4, 1]) - near + gap) < 1e-6)
     top = on_plane(Q["left"], geometry.project(Q["left"], PB[[t, (t + 1) % 4]]), desk, 0.015)
-    return P, PB, Q, grads, desk, s, float(np.mean(top[:, 1]) - near)
+    texture = {cam: high_pass(img, SweepConfig().sigma_px)
+               for cam, img in ideal_images(rig, r).items()}
+    return P, PB, Q, grads, desk, s, float(np.mean(top[:, 1]) - near), texture
 
 
 def test_a_side_a_taller_book_in_front_hides_goes_on_under_it():
-    P, PB, Q, grads, desk, s, reach = _behind_a_taller_book(0.0)
+    P, PB, Q, grads, desk, s, reach, _ = _behind_a_taller_book(0.0)
     assert extent._facing(P, s, Q)
     assert reach > 0.025  # m: the taller book hides 2.5 cm or more of the low cover
     # the low cover as both images end it, at the taller book's edge
@@ -1499,11 +1502,35 @@ def test_a_side_a_taller_book_in_front_hides_goes_on_under_it():
                                extent.FacingConfig(under_deg=0.0)) == 0.0
 
 
+def test_a_side_on_a_line_of_print_short_of_a_taller_book_goes_on_under_it():
+    """Flush, behind a taller book wider than it, a photo cover found 3 cm short of where
+    that book hides it, its side on a line of its print (12 px inside in the images): the
+    strip between is its print, at its height, so the side goes out under the taller
+    book's side, with the print test (``facing.under_print_px``) only."""
+    P, PB, Q, grads, desk, s, reach, texture = _behind_a_taller_book(0.0, "photo", 0.26)
+    short = extent._moved(P, s, np.array([-(reach + 0.03)]))[0]
+    move = extent.under_taller(short, s, [PB], Q, grads, desk, texture=texture)
+    assert abs(move - (reach + 0.03)) < 0.002  # m: out to the true side
+    # not without the print, nor with the reach of the old test (under_px) only
+    assert extent.under_taller(short, s, [PB], Q, grads, desk) == 0.0
+    no_print = extent.FacingConfig(under_print_px=0.0)
+    assert extent.under_taller(short, s, [PB], Q, grads, desk, no_print, texture=texture) == 0.0
+
+
+def test_a_plain_side_short_of_a_taller_book_stays():
+    """The same, the cover plain: the strip between shows no print that matches better at
+    the cover's height than on the desk, so nothing tells it from the desk seen between
+    two books, and the side stays."""
+    P, PB, Q, grads, desk, s, reach, texture = _behind_a_taller_book(0.0, "plain", 0.26)
+    short = extent._moved(P, s, np.array([-(reach + 0.03)]))[0]
+    assert extent.under_taller(short, s, [PB], Q, grads, desk, texture=texture) == 0.0
+
+
 def test_a_side_on_a_taller_books_edge_beyond_its_page_block_stays():
     """4 cm apart, the low cover's edge shows, its page block below it hidden in part: a
     side taken on the taller book's edge beyond the block is not moved further out (an
     edge of the other polarity lies inside it: the cover's own)."""
-    P, PB, Q, grads, desk, s, reach = _behind_a_taller_book(0.04)
+    P, PB, Q, grads, desk, s, reach, _ = _behind_a_taller_book(0.04)
     assert reach < -0.005  # m: the taller book's edge lies beyond the low cover's
     on_edge = extent._moved(P, s, np.array([-reach]))[0]
     assert extent.under_taller(on_edge, s, [PB], Q, grads, desk) == 0.0
@@ -1515,7 +1542,7 @@ def test_a_side_in_view_on_a_taller_books_edge_stays():
     """3 cm apart, the taller book's edge lies on the low cover's own edge in both images
     (within 0.5 mm on the cover's plane): that edge goes on beyond the taller book, which is
     narrower, so the side is not moved, even with the inside test off."""
-    P, PB, Q, grads, desk, s, reach = _behind_a_taller_book(0.03)
+    P, PB, Q, grads, desk, s, reach, _ = _behind_a_taller_book(0.03)
     assert abs(reach) < 0.0005  # m
     on_edge = extent._moved(P, s, np.array([-reach]))[0]
     no_inside = extent.FacingConfig(under_inner=np.inf)
@@ -1543,3 +1570,24 @@ def test_detect_takes_a_cover_on_under_a_taller_book_in_front(seed, scene, book)
         short.append(min(truth["size"][:2]) - min(got.pose.size[:2]))
     assert abs(short[0]) < 0.004  # m
     assert short[1] > 0.01  # m
+
+
+def test_detect_takes_a_photo_cover_on_from_a_line_of_its_print_under_a_taller_book():
+    """The Table II renders' scene 108 (rovis synth --protocol table2 --n 128 --seed 1),
+    book 0: a photo cover 130 x 128 x 16 mm, a 5 cm plain book flush in front of it that
+    hides a strip of it. The cover was found 26 mm narrow: its side facing that book lay
+    on a line of its print 8-9 px short of the book's edge in both images, beyond the
+    reach of the old test (``facing.under_px``). The strip between matches at the cover's
+    height: the side goes out under the taller book's (``facing.under_print_px``)."""
+    sc, r = dataset_scene("table2", 1, 108)
+    truth = r.truth["books"][0]
+    true = np.array(truth["center"])
+    got = {}
+    for settings in ([], ["facing.under_print_px=0"]):
+        res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
+        got[bool(settings)] = min(res.objects, key=lambda o: np.linalg.norm(o.pose.center - true))
+    assert np.abs(got[False].pose.center[:2] - true[:2]).max() < 0.003  # m
+    assert np.abs(np.sort(got[False].pose.size[:2]) - np.sort(truth["size"][:2])).max() < 0.007
+    # without it, 26 mm narrow and its centre a centimetre off
+    assert np.abs(got[True].pose.center[:2] - true[:2]).max() > 0.008
+    assert min(truth["size"][:2]) - min(got[True].pose.size[:2]) > 0.02

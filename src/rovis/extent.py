@@ -61,7 +61,7 @@ from rovis import geometry
 from rovis.segment.edges import Gradients
 from rovis.segment.boundary import Fit, inner_edges, refine_sides
 from rovis.segment.lines import intersect, refine_segment
-from rovis.sweep import _plane_frame, on_plane
+from rovis.sweep import SweepConfig, _plane_frame, on_plane, side_strip_ncc
 
 
 @dataclass(frozen=True)
@@ -892,7 +892,11 @@ class FacingConfig:
     ``under_min`` (metres) or more; not where the side is an edge beyond that book's side
     in either image (``under_free`` of its gradient alongside it or more), nor where an
     edge of the other polarity lies inside it within its page block's width
-    (``under_inner`` of the side's gradient or more).
+    (``under_inner`` of the side's gradient or more). A side that lies short of that
+    book's side, within ``under_print_px`` pixels of it in both images (0 turns this off),
+    is moved too where the strip between shows the cover's print: it matches between the
+    images at the cover's height, and better than on the desk (the sweep's
+    ``strip_min_ncc`` and ``min_gap``); the side lay on a line of its print.
     """
 
     enabled: bool = True
@@ -922,6 +926,7 @@ class FacingConfig:
     under_min: float = 0.002
     under_free: float = 0.5
     under_inner: float = 0.2
+    under_print_px: float = 20.0
 
 
 def settle_facing_sides(corners: dict[str, NDArray[np.float64]], Q: dict[str, NDArray[np.float64]],
@@ -1743,7 +1748,9 @@ def height_off_feet(P: NDArray[np.float64], Q: dict[str, NDArray[np.float64]],
 
 def under_taller(P: NDArray[np.float64], s: int, taller: Sequence[NDArray[np.float64]],
                  Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
-                 desk_plane: NDArray[np.float64], cfg: FacingConfig = FacingConfig()) -> float:
+                 desk_plane: NDArray[np.float64], cfg: FacingConfig = FacingConfig(), *,
+                 texture: dict[str, NDArray[np.float32]] | None = None,
+                 sweep: SweepConfig = SweepConfig()) -> float:
     """How far side ``s`` of cover ``P`` goes on hidden under a taller book in front of it.
 
     A book in front of a lower one (nearer the cameras) and taller than it hides the strip
@@ -1777,7 +1784,12 @@ def under_taller(P: NDArray[np.float64], s: int, taller: Sequence[NDArray[np.flo
         ``[nx, ny, nz, d]``, n·X + d = 0, n up, world.
     cfg : FacingConfig
         ``under_px``, ``under_deg``, ``under_share``, ``under_min``, ``under_inner``,
-        ``under_free``.
+        ``under_free``, ``under_print_px``.
+    texture : dict, optional
+        "left", "right": the high-passed ideal images (:func:`rovis.sweep.high_pass`), for
+        the print test of a side short of the taller book's (none without them).
+    sweep : SweepConfig
+        ``strip_min_ncc`` and ``min_gap`` of that test.
 
     Returns
     -------
@@ -1786,17 +1798,22 @@ def under_taller(P: NDArray[np.float64], s: int, taller: Sequence[NDArray[np.flo
     """
     up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
     a, b = P[s], P[(s + 1) % 4]
+    h = float(np.mean(geometry.plane_distance(desk_plane, P)))
     m, length = 0.5 * (a + b), float(np.linalg.norm(b - a))
     u = (b - a) / length
     n = _unit(np.cross(up, u))  # (u may tilt a little: the corners as triangulated)
     if n @ (m - P.mean(axis=0)) < 0:
         n = -n  # outward
+    reach = max(cfg.under_px, cfg.under_print_px if texture is not None else 0.0)
     moves = []
     for PB in taller:
         for t in range(4):
             top = PB[[t, (t + 1) % 4]]
-            if not all(_on_side(geometry.project(Q[c], np.array([a, b])),
-                                geometry.project(Q[c], top), cfg) for c in Q):
+            # how far the side lies from that book's side in each image, nearest and
+            # furthest (inf: not along it)
+            gaps = {c: _on_side(geometry.project(Q[c], np.array([a, b])),
+                                geometry.project(Q[c], top), cfg, reach) for c in Q}
+            if max(far for _, far in gaps.values()) > reach:
                 continue
             # the taller book's side straight below, in the cover's plane
             e0, e1 = top - np.outer((top - m) @ up, up)
@@ -1806,30 +1823,55 @@ def under_taller(P: NDArray[np.float64], s: int, taller: Sequence[NDArray[np.flo
                 continue  # behind the side, or beside it
             # m + x n on the line e0 + y (e1 - e0)
             (x, _), *_ = np.linalg.lstsq(np.column_stack([n, e0 - e1]), e0 - m, rcond=None)
-            if x >= cfg.under_min and not _edge_beyond(np.array([a, b]), top, Q, grads,
-                                                      cfg.under_free):
-                moves.append(float(x))
+            if x < cfg.under_min or _edge_beyond(np.array([a, b]), top, Q, grads,
+                                                cfg.under_free):
+                continue
+            if max(far for _, far in gaps.values()) > cfg.under_px and not _print_between(
+                    P, s, gaps["left"][0], h, Q, desk_plane, texture, sweep):
+                continue  # short of it: the strip between must be the cover's print
+            moves.append(float(x))
     # the nearest taller book's side bounds the hidden one
     if not moves or _edge_inside(P, s, Q, grads, _drop(P, desk_plane), cfg.under_inner):
         return 0.0
     return min(moves)
 
 
-def _on_side(qa: NDArray[np.float64], qb: NDArray[np.float64], cfg: FacingConfig) -> bool:
-    """Whether segment ``qa`` (2, 2) lies on the line of segment ``qb`` (2, 2) in one image:
-    within ``cfg.under_deg`` of its direction, and within ``cfg.under_px`` of it wherever
-    ``qb`` runs alongside, over ``cfg.under_share`` of ``qa`` or more."""
+def _on_side(qa: NDArray[np.float64], qb: NDArray[np.float64], cfg: FacingConfig,
+             reach: float) -> tuple[float, float]:
+    """How far segment ``qa`` (2, 2) lies from the line of segment ``qb`` (2, 2) in one
+    image, pixels, nearest and furthest, over the stretch where ``qb`` runs alongside:
+    where ``qa`` runs within ``cfg.under_deg`` of its direction, along ``cfg.under_share``
+    of ``qa`` or more, within ``reach`` of it all along that stretch ((inf, inf)
+    otherwise)."""
     da, db = qa[1] - qa[0], qb[1] - qb[0]
     la, lb = float(np.linalg.norm(da)), float(np.linalg.norm(db))
     if la < 1 or lb < 1 or abs(da @ db) < np.cos(np.radians(cfg.under_deg)) * la * lb:
-        return False
+        return np.inf, np.inf
     ub = db / lb
     pts = qa[0] + np.linspace(0.0, 1.0, 21)[:, None] * da
     along = (pts - qb[0]) @ ub
     beside = (along >= 0) & (along <= lb)
-    across = (pts - qb[0]) @ np.array([-ub[1], ub[0]])
-    return bool(beside.any() and beside.mean() >= cfg.under_share
-                and np.all(np.abs(across[beside]) <= cfg.under_px))
+    across = np.abs((pts - qb[0]) @ np.array([-ub[1], ub[0]]))[beside]
+    if not beside.any() or beside.mean() < cfg.under_share or np.any(across > reach):
+        return np.inf, np.inf
+    return float(across.min()), float(across.max())
+
+
+def _print_between(P: NDArray[np.float64], s: int, gap_px: float, height: float,
+                   Q: dict[str, NDArray[np.float64]], desk_plane: NDArray[np.float64],
+                   texture: dict[str, NDArray[np.float32]] | None, cfg: SweepConfig) -> bool:
+    """Whether the strip beyond side ``s`` of cover ``P``, out to ``gap_px`` pixels in the
+    left image (where a taller book's side is seen), is the cover's print: it matches
+    between the images at ``height`` with an NCC of ``cfg.strip_min_ncc`` or more, and by
+    ``cfg.min_gap`` better than on the desk (:func:`rovis.sweep.side_strip_ncc`, 1.5 px
+    from either line). A strip under 3 px wide tells nothing (False)."""
+    near, far = 1.5, gap_px - 1.5
+    if texture is None or far - near < 3.0:
+        return False
+    ncc = side_strip_ncc(texture["left"], texture["right"], Q["left"], Q["right"],
+                         geometry.project(Q["left"], P), desk_plane, [height, 0.0], s,
+                         near_px=near, far_px=far)
+    return ncc is not None and ncc[0] >= cfg.strip_min_ncc and ncc[0] - ncc[1] > cfg.min_gap
 
 
 def _edge_beyond(side: NDArray[np.float64], top: NDArray[np.float64],

@@ -651,7 +651,7 @@ class Detector:
         # moved out to straight under that book's (last: the steps above take each found
         # cover's quads for what both images show of it)
         if self.cfg.facing.under and desk_plane is not None:
-            found = self._under_taller(rig, grads, found, desk_plane)
+            found = self._under_taller(rig, grads, found, desk_plane, texture)
             lap("under")
         # beyond the paper: each book as reported, checked against both images
         found = self._agreed(f, found, self._edge_strength(segs))
@@ -1882,10 +1882,13 @@ class Detector:
 
     def _under_taller(self, rig: StereoRig, grads: dict[str, Gradients],
                       found: list[tuple[Pair, BookDetection]], desk_plane: NDArray[np.float64],
+                      texture: dict[str, NDArray[np.float32]] | None,
                       ) -> list[tuple[Pair, BookDetection]]:
         """Each cover with a side facing the cameras that a taller book found in front
         hides, that side moved out to straight under the taller book's side
-        (:func:`rovis.extent.under_taller`), kept where it passes the pose checks again.
+        (:func:`rovis.extent.under_taller`; with ``texture``, also a side short of it
+        where the strip between is the cover's print), kept where it passes the pose
+        checks again.
 
         The print test (:mod:`rovis.sweep`) is not asked again: the strip the move adds
         shows the taller book's top, not this cover's print."""
@@ -1910,7 +1913,8 @@ class Detector:
             for s in range(4):
                 if not _facing(P, s, Q):
                     continue
-                d = under_taller(P, s, taller, Q, grads, desk_plane, cfg)
+                d = under_taller(P, s, taller, Q, grads, desk_plane, cfg, texture=texture,
+                                 sweep=self.cfg.sweep)
                 if d > 0:
                     P, moved = _moved(P, s, np.array([d]))[0], True
             if moved:
