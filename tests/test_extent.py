@@ -1467,11 +1467,11 @@ def test_a_frame_count_out_of_range_grows_nothing_it_cannot_back(framed_book, si
 def _behind_a_taller_book(gap, kind="plain", width=0.16):
     """A light book 1.5 cm thick (a plain cover, or ``kind``), 22 cm wide, a 4.5 cm one
     ``width`` metres wide in front of it, ``gap`` metres apart (flush at 0), alone on the
-    desk at 500 lx: the low book's corners
-    (4, 3), the taller one's, the projections, gradients, desk plane, the low book's side
-    facing the taller one (and the cameras), how far the taller book's top edge, seen from
-    the left camera on the low cover's plane, lies inward of that side (metres; negative:
-    outward, the side in view), and both ideal images' print (the sweep's high-pass)."""
+    desk at 500 lx: the low book's corners (4, 3), the taller one's, the projections,
+    gradients, desk plane, the low book's side facing the taller one (and the cameras),
+    how far the taller book's top edge, seen from the left camera on the low cover's
+    plane, lies inward of that side (metres; negative: outward, the side in view), and
+    both ideal images' print (the sweep's high-pass)."""
     low = Book(center=(0.45, 0.42, 0.015), yaw_deg=0.0, size=(0.22, 0.15, 0.015),
                cover=CoverSpec(kind=kind, albedo=0.6, seed=1))
     near = 0.42 - 0.075  # y of the low book's side towards the cameras
@@ -1509,12 +1509,26 @@ def test_a_side_on_a_line_of_print_short_of_a_taller_book_goes_on_under_it():
     book's side, with the print test (``facing.under_print_px``) only."""
     P, PB, Q, grads, desk, s, reach, texture = _behind_a_taller_book(0.0, "photo", 0.26)
     short = extent._moved(P, s, np.array([-(reach + 0.03)]))[0]
+    # beyond under_px, within under_print_px of the taller book's side, in both images
+    cfg = extent.FacingConfig()
+    for cam in Q:
+        near, far = _gap_px(short, s, PB, Q[cam], cfg)
+        assert cfg.under_px < near <= far < cfg.under_print_px
     move = extent.under_taller(short, s, [PB], Q, grads, desk, texture=texture)
     assert abs(move - (reach + 0.03)) < 0.002  # m: out to the true side
     # not without the print, nor with the reach of the old test (under_px) only
     assert extent.under_taller(short, s, [PB], Q, grads, desk) == 0.0
     no_print = extent.FacingConfig(under_print_px=0.0)
     assert extent.under_taller(short, s, [PB], Q, grads, desk, no_print, texture=texture) == 0.0
+
+
+def _gap_px(P, s, PB, Q, cfg):
+    """Pixels from side s of P to the taller book PB's side it lies along (nearest,
+    furthest) in the image of projection Q, within 50 px (inf: none)."""
+    side = geometry.project(Q, P[[s, (s + 1) % 4]])
+    gaps = [extent._on_side(side, geometry.project(Q, PB[[t, (t + 1) % 4]]), cfg, 50.0)
+            for t in range(4)]
+    return min(gaps)
 
 
 def test_a_plain_side_short_of_a_taller_book_stays():
@@ -1526,14 +1540,31 @@ def test_a_plain_side_short_of_a_taller_book_stays():
     assert extent.under_taller(short, s, [PB], Q, grads, desk, texture=texture) == 0.0
 
 
+def test_a_photo_covers_own_edge_short_of_a_taller_book_apart_stays():
+    """6 cm apart, the photo cover's own edge in view 13 px short of the taller book's
+    side in both images, its page block and the desk between: the strip matches no better
+    at the cover's height than on the desk, so the side stays, whatever the other
+    refusals say; taken as on that side (``under_px`` 30 px), it would go 6 cm out."""
+    P, PB, Q, grads, desk, s, reach, texture = _behind_a_taller_book(0.06, "photo", 0.26)
+    assert reach < -0.02  # m: the cover's edge in view
+    cfg = extent.FacingConfig(under_inner=np.inf, under_free=np.inf)
+    for cam in Q:
+        near, far = _gap_px(P, s, PB, Q[cam], cfg)
+        assert cfg.under_px < near <= far < cfg.under_print_px
+    assert extent.under_taller(P, s, [PB], Q, grads, desk, cfg, texture=texture) == 0.0
+    wide = replace(cfg, under_px=30.0)
+    assert extent.under_taller(P, s, [PB], Q, grads, desk, wide) > 0.05  # m
+
+
 def test_a_side_on_a_taller_books_edge_beyond_its_page_block_stays():
     """4 cm apart, the low cover's edge shows, its page block below it hidden in part: a
     side taken on the taller book's edge beyond the block is not moved further out (an
     edge of the other polarity lies inside it: the cover's own)."""
-    P, PB, Q, grads, desk, s, reach, _ = _behind_a_taller_book(0.04)
+    P, PB, Q, grads, desk, s, reach, texture = _behind_a_taller_book(0.04)
     assert reach < -0.005  # m: the taller book's edge lies beyond the low cover's
     on_edge = extent._moved(P, s, np.array([-reach]))[0]
     assert extent.under_taller(on_edge, s, [PB], Q, grads, desk) == 0.0
+    assert extent.under_taller(on_edge, s, [PB], Q, grads, desk, texture=texture) == 0.0
     assert extent.under_taller(on_edge, s, [PB], Q, grads, desk,
                                extent.FacingConfig(under_inner=np.inf)) > 0.02  # m
 
@@ -1542,11 +1573,13 @@ def test_a_side_in_view_on_a_taller_books_edge_stays():
     """3 cm apart, the taller book's edge lies on the low cover's own edge in both images
     (within 0.5 mm on the cover's plane): that edge goes on beyond the taller book, which is
     narrower, so the side is not moved, even with the inside test off."""
-    P, PB, Q, grads, desk, s, reach, _ = _behind_a_taller_book(0.03)
+    P, PB, Q, grads, desk, s, reach, texture = _behind_a_taller_book(0.03)
     assert abs(reach) < 0.0005  # m
     on_edge = extent._moved(P, s, np.array([-reach]))[0]
     no_inside = extent.FacingConfig(under_inner=np.inf)
     assert extent.under_taller(on_edge, s, [PB], Q, grads, desk, no_inside) == 0.0
+    assert extent.under_taller(on_edge, s, [PB], Q, grads, desk, no_inside,
+                               texture=texture) == 0.0
     # without that test too, it goes out under the taller book's side, the gap taken in
     neither = extent.FacingConfig(under_inner=np.inf, under_free=np.inf)
     assert abs(extent.under_taller(on_edge, s, [PB], Q, grads, desk, neither) - 0.03) < 0.002

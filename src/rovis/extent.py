@@ -893,10 +893,13 @@ class FacingConfig:
     in either image (``under_free`` of its gradient alongside it or more), nor where an
     edge of the other polarity lies inside it within its page block's width
     (``under_inner`` of the side's gradient or more). A side that lies short of that
-    book's side, within ``under_print_px`` pixels of it in both images (0 turns this off),
-    is moved too where the strip between shows the cover's print: it matches between the
-    images at the cover's height, and better than on the desk (the sweep's
-    ``strip_min_ncc`` and ``min_gap``); the side lay on a line of its print.
+    book's side, within ``under_print_px`` pixels of it in both images (a value at or
+    under ``under_px`` turns this off, as do no high-passed images), is moved too where
+    the strip between, in the left image, shows the cover's print: from 1.5 px beyond the
+    side to 1.5 px short of that book's side (3 px wide at least, so a side 6 px short or
+    less is not asked), it matches between the images at the cover's height, and better
+    than on the desk (the sweep's ``strip_min_ncc`` and ``min_gap``); the side lay on a
+    line of its print.
     """
 
     enabled: bool = True
@@ -1767,6 +1770,11 @@ def under_taller(P: NDArray[np.float64], s: int, taller: Sequence[NDArray[np.flo
     block between it and the taller book's edge). A gap between the books that the
     taller one's edge hides is taken into the cover.
 
+    With ``texture``, a side that lies short of the taller book's side, by up to
+    ``cfg.under_print_px`` in both images, is moved too where the strip between is the
+    cover's print (:func:`_print_between`): the side lay on a line of its print, the
+    cover in view beyond it up to the taller book's edge.
+
     Parameters
     ----------
     P : ndarray, shape (4, 3)
@@ -1798,7 +1806,6 @@ def under_taller(P: NDArray[np.float64], s: int, taller: Sequence[NDArray[np.flo
     """
     up = desk_plane[:3] / np.linalg.norm(desk_plane[:3])
     a, b = P[s], P[(s + 1) % 4]
-    h = float(np.mean(geometry.plane_distance(desk_plane, P)))
     m, length = 0.5 * (a + b), float(np.linalg.norm(b - a))
     u = (b - a) / length
     n = _unit(np.cross(up, u))  # (u may tilt a little: the corners as triangulated)
@@ -1810,7 +1817,7 @@ def under_taller(P: NDArray[np.float64], s: int, taller: Sequence[NDArray[np.flo
         for t in range(4):
             top = PB[[t, (t + 1) % 4]]
             # how far the side lies from that book's side in each image, nearest and
-            # furthest (inf: not along it)
+            # furthest (inf: not along it, or further than reach)
             gaps = {c: _on_side(geometry.project(Q[c], np.array([a, b])),
                                 geometry.project(Q[c], top), cfg, reach) for c in Q}
             if max(far for _, far in gaps.values()) > reach:
@@ -1827,7 +1834,7 @@ def under_taller(P: NDArray[np.float64], s: int, taller: Sequence[NDArray[np.flo
                                                 cfg.under_free):
                 continue
             if max(far for _, far in gaps.values()) > cfg.under_px and not _print_between(
-                    P, s, gaps["left"][0], h, Q, desk_plane, texture, sweep):
+                    P, s, top, gaps["left"][0], Q, desk_plane, texture, sweep):
                 continue  # short of it: the strip between must be the cover's print
             moves.append(float(x))
     # the nearest taller book's side bounds the hidden one
@@ -1857,20 +1864,26 @@ def _on_side(qa: NDArray[np.float64], qb: NDArray[np.float64], cfg: FacingConfig
     return float(across.min()), float(across.max())
 
 
-def _print_between(P: NDArray[np.float64], s: int, gap_px: float, height: float,
+def _print_between(P: NDArray[np.float64], s: int, top: NDArray[np.float64], gap_px: float,
                    Q: dict[str, NDArray[np.float64]], desk_plane: NDArray[np.float64],
                    texture: dict[str, NDArray[np.float32]] | None, cfg: SweepConfig) -> bool:
-    """Whether the strip beyond side ``s`` of cover ``P``, out to ``gap_px`` pixels in the
-    left image (where a taller book's side is seen), is the cover's print: it matches
-    between the images at ``height`` with an NCC of ``cfg.strip_min_ncc`` or more, and by
-    ``cfg.min_gap`` better than on the desk (:func:`rovis.sweep.side_strip_ncc`, 1.5 px
-    from either line). A strip under 3 px wide tells nothing (False)."""
+    """Whether the strip beyond side ``s`` of cover ``P`` (outward from the quad's middle,
+    in the left image), out to where the taller book's side ``top`` (2, 3) is seen
+    ``gap_px`` pixels away, is the cover's print: it matches between the images at the
+    cover's height with an NCC of ``cfg.strip_min_ncc`` or more, and by ``cfg.min_gap``
+    better than on the desk (:func:`rovis.sweep.side_strip_ncc`, from 1.5 px beyond the
+    side to 1.5 px short of ``top``). False where ``top`` is not seen beyond the side, or
+    the strip is under 3 px wide (it tells nothing)."""
     near, far = 1.5, gap_px - 1.5
     if texture is None or far - near < 3.0:
         return False
-    ncc = side_strip_ncc(texture["left"], texture["right"], Q["left"], Q["right"],
-                         geometry.project(Q["left"], P), desk_plane, [height, 0.0], s,
-                         near_px=near, far_px=far)
+    q = geometry.project(Q["left"], P)
+    mid = 0.5 * (q[s] + q[(s + 1) % 4])
+    if (geometry.project(Q["left"], top).mean(axis=0) - mid) @ (mid - q.mean(axis=0)) <= 0:
+        return False  # (the taller book's side seen inward of this one: no strip between)
+    height = float(np.mean(geometry.plane_distance(desk_plane, P)))
+    ncc = side_strip_ncc(texture["left"], texture["right"], Q["left"], Q["right"], q,
+                         desk_plane, [height, 0.0], s, near_px=near, far_px=far)
     return ncc is not None and ncc[0] >= cfg.strip_min_ncc and ncc[0] - ncc[1] > cfg.min_gap
 
 

@@ -1886,12 +1886,14 @@ class Detector:
                       ) -> list[tuple[Pair, BookDetection]]:
         """Each cover with a side facing the cameras that a taller book found in front
         hides, that side moved out to straight under the taller book's side
-        (:func:`rovis.extent.under_taller`; with ``texture``, also a side short of it
-        where the strip between is the cover's print), kept where it passes the pose
-        checks again.
+        (:func:`rovis.extent.under_taller`; with ``texture``, the high-passed images, also
+        a side short of it where the strip between is the cover's print: None where
+        neither the sweep nor the height map ran, and then not), kept where it passes the
+        pose checks again.
 
-        The print test (:mod:`rovis.sweep`) is not asked again: the strip the move adds
-        shows the taller book's top, not this cover's print."""
+        The cover's print height test (:mod:`rovis.sweep`) is not asked of the moved
+        cover: beyond the taller book's edge, the strip the move adds shows that book's
+        top, not this cover's print."""
         cfg = self.cfg.facing
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         # the covers as reported (a taller book's side is where its book says), each with
