@@ -81,6 +81,7 @@ STEPS: list[tuple[str, list[str]]] = [
      ["complete.print_taller=false"]),
     ("a print edge run into the side's own tried", ["trim.print_dip=0"]),
     ("a third print edge tried", ["trim.print_edges=2"]),
+    ("a side on a line of print short of a taller book in front", ["facing.under_print_px=0"]),
 ]
 
 
