@@ -1605,14 +1605,18 @@ def test_detect_takes_a_cover_on_under_a_taller_book_in_front(seed, scene, book)
     assert short[1] > 0.01  # m
 
 
-def test_detect_takes_a_photo_cover_on_from_a_line_of_its_print_under_a_taller_book():
-    """The Table II renders' scene 108 (rovis synth --protocol table2 --n 128 --seed 1),
-    book 0: a photo cover 130 x 128 x 16 mm, a 5 cm plain book flush in front of it that
-    hides a strip of it. The cover was found 26 mm narrow: its side facing that book lay
-    on a line of its print 8-9 px short of the book's edge in both images, beyond the
-    reach of the old test (``facing.under_px``). The strip between matches at the cover's
-    height: the side goes out under the taller book's (``facing.under_print_px``)."""
-    sc, r = dataset_scene("table2", 1, 108)
+@pytest.mark.parametrize("scene", [108, 118])
+def test_detect_takes_a_photo_cover_on_from_a_line_of_its_print_under_a_taller_book(scene):
+    """The Table II renders' scenes 108 and 118 (rovis synth --protocol table2 --n 128
+    --seed 1), book 0: a photo cover 130 x 128 x 16 mm, a 5 cm plain book flush in front
+    of it that hides a strip of it. The cover was found 26 and 40 mm narrow: its side
+    facing that book lay on a line of its print 8-9 and 15-16 px short of the book's edge
+    in both images, beyond the reach of the old test (``facing.under_px``). The strip
+    between matches at the cover's height: the side goes out under the taller book's
+    (``facing.under_print_px``). In scene 118 the print inside the side is an edge of the
+    other polarity, which the inside test (``facing.under_inner``) took for the cover's
+    own edge: it is not asked of a side with the cover's print beyond it."""
+    sc, r = dataset_scene("table2", 1, scene)
     truth = r.truth["books"][0]
     true = np.array(truth["center"])
     got = {}
@@ -1621,6 +1625,23 @@ def test_detect_takes_a_photo_cover_on_from_a_line_of_its_print_under_a_taller_b
         got[bool(settings)] = min(res.objects, key=lambda o: np.linalg.norm(o.pose.center - true))
     assert np.abs(got[False].pose.center[:2] - true[:2]).max() < 0.003  # m
     assert np.abs(np.sort(got[False].pose.size[:2]) - np.sort(truth["size"][:2])).max() < 0.007
-    # without it, 26 mm narrow and its centre a centimetre off
+    # without it, 26 mm narrow or more and its centre a centimetre off
     assert np.abs(got[True].pose.center[:2] - true[:2]).max() > 0.008
     assert min(truth["size"][:2]) - min(got[True].pose.size[:2]) > 0.02
+
+
+def test_detect_leaves_a_side_with_its_block_beyond_the_print_short_of_a_taller_book():
+    """The held-out mixed renders' scene 19 (rovis synth --protocol mixed --n 40 --seed 9),
+    book 0: a printed cover 161 x 159 x 42 mm found 8 mm short, its side on a line of its
+    print 16-19 px short of a 57 mm book's side. The strip between matches at the cover's
+    height by its inner half (the print, NCC 0.99) and not by its outer (the cover's edge,
+    its page block and the desk: 0.27): both halves are asked, and the side stays, its
+    centre within 6 mm. Asked as one strip (NCC 0.99 against -0.64 on the desk), it went
+    35 mm out, 24 mm too long."""
+    sc, r = dataset_scene("mixed", 9, 19)
+    truth = r.truth["books"][0]
+    true = np.array(truth["center"])
+    res = Detector(sc.rig, DetectConfig()).detect(r.left, r.right)
+    got = min(res.objects, key=lambda o: np.linalg.norm(o.pose.center - true))
+    assert np.abs(got.pose.center[:2] - true[:2]).max() < 0.006  # m
+    assert np.all(got.pose.size[:2] < np.array(truth["size"][:2]) + 0.003)  # no longer

@@ -897,9 +897,10 @@ class FacingConfig:
     under ``under_px`` turns this off, as do no high-passed images), is moved too where
     the strip between, in the left image, shows the cover's print: from 1.5 px beyond the
     side to 1.5 px short of that book's side (3 px wide at least, so a side 6 px short or
-    less is not asked), it matches between the images at the cover's height, and better
-    than on the desk (the sweep's ``strip_min_ncc`` and ``min_gap``); the side lay on a
-    line of its print.
+    less is not asked), and each half of it where it is 6 px wide or more, it matches
+    between the images at the cover's height, and better than on the desk (the sweep's
+    ``strip_min_ncc`` and ``min_gap``); the side lay on a line of its print. The inside
+    test (``under_inner``) is not asked of such a side: what lies inside it is more print.
     """
 
     enabled: bool = True
@@ -1773,7 +1774,8 @@ def under_taller(P: NDArray[np.float64], s: int, taller: Sequence[NDArray[np.flo
     With ``texture``, a side that lies short of the taller book's side, by up to
     ``cfg.under_print_px`` in both images, is moved too where the strip between is the
     cover's print (:func:`_print_between`): the side lay on a line of its print, the
-    cover in view beyond it up to the taller book's edge.
+    cover in view beyond it up to the taller book's edge. The inside test is not asked
+    of it (an edge of the other polarity inside it is more print, not the cover's edge).
 
     Parameters
     ----------
@@ -1833,14 +1835,19 @@ def under_taller(P: NDArray[np.float64], s: int, taller: Sequence[NDArray[np.flo
             if x < cfg.under_min or _edge_beyond(np.array([a, b]), top, Q, grads,
                                                 cfg.under_free):
                 continue
-            if max(far for _, far in gaps.values()) > cfg.under_px and not _print_between(
-                    P, s, top, gaps["left"][0], Q, desk_plane, texture, sweep):
+            short = max(far for _, far in gaps.values()) > cfg.under_px
+            if short and not _print_between(P, s, top, gaps["left"][0], Q, desk_plane,
+                                            texture, sweep):
                 continue  # short of it: the strip between must be the cover's print
-            moves.append(float(x))
-    # the nearest taller book's side bounds the hidden one
-    if not moves or _edge_inside(P, s, Q, grads, _drop(P, desk_plane), cfg.under_inner):
+            moves.append((float(x), short))
+    if not moves:
         return 0.0
-    return min(moves)
+    # the nearest taller book's side bounds the hidden one; a side short of it with the
+    # cover's print beyond is no edge of the cover's, whatever lies inside it (more print)
+    move, short = min(moves)
+    if not short and _edge_inside(P, s, Q, grads, _drop(P, desk_plane), cfg.under_inner):
+        return 0.0
+    return move
 
 
 def _on_side(qa: NDArray[np.float64], qb: NDArray[np.float64], cfg: FacingConfig,
@@ -1869,10 +1876,12 @@ def _print_between(P: NDArray[np.float64], s: int, top: NDArray[np.float64], gap
                    texture: dict[str, NDArray[np.float32]] | None, cfg: SweepConfig) -> bool:
     """Whether the strip beyond side ``s`` of cover ``P`` (outward from the quad's middle,
     in the left image), out to where the taller book's side ``top`` (2, 3) is seen
-    ``gap_px`` pixels away, is the cover's print: it matches between the images at the
-    cover's height with an NCC of ``cfg.strip_min_ncc`` or more, and by ``cfg.min_gap``
-    better than on the desk (:func:`rovis.sweep.side_strip_ncc`, from 1.5 px beyond the
-    side to 1.5 px short of ``top``). False where ``top`` is not seen beyond the side, or
+    ``gap_px`` pixels away, is the cover's print: from 1.5 px beyond the side to 1.5 px
+    short of ``top``, and each half of that where it is 6 px wide or more, it matches
+    between the images at the cover's height with an NCC of ``cfg.strip_min_ncc`` or more,
+    and by ``cfg.min_gap`` better than on the desk (:func:`rovis.sweep.side_strip_ncc`).
+    (A strip of print, then the cover's edge and its page block, matches at the cover's
+    height by its inner half alone.) False where ``top`` is not seen beyond the side, or
     the strip is under 3 px wide (it tells nothing)."""
     near, far = 1.5, gap_px - 1.5
     if texture is None or far - near < 3.0:
@@ -1882,10 +1891,13 @@ def _print_between(P: NDArray[np.float64], s: int, top: NDArray[np.float64], gap
     if (geometry.project(Q["left"], top).mean(axis=0) - mid) @ (mid - q.mean(axis=0)) <= 0:
         return False  # (the taller book's side seen inward of this one: no strip between)
     height = float(np.mean(geometry.plane_distance(desk_plane, P)))
-    ncc = side_strip_ncc(texture["left"], texture["right"], Q["left"], Q["right"], q,
-                         desk_plane, [height, 0.0], s, near_px=near, far_px=far)
-    return ncc is not None and ncc[0] >= cfg.strip_min_ncc and ncc[0] - ncc[1] > cfg.min_gap
-
+    half = 0.5 * (near + far)
+    for a, b in ([(near, far)] if far - near < 6.0 else [(near, half), (half, far)]):
+        ncc = side_strip_ncc(texture["left"], texture["right"], Q["left"], Q["right"], q,
+                             desk_plane, [height, 0.0], s, near_px=a, far_px=b)
+        if ncc is None or ncc[0] < cfg.strip_min_ncc or ncc[0] - ncc[1] <= cfg.min_gap:
+            return False
+    return True
 
 def _edge_beyond(side: NDArray[np.float64], top: NDArray[np.float64],
                  Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
