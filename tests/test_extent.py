@@ -1644,4 +1644,5 @@ def test_detect_leaves_a_side_with_its_block_beyond_the_print_short_of_a_taller_
     res = Detector(sc.rig, DetectConfig()).detect(r.left, r.right)
     got = min(res.objects, key=lambda o: np.linalg.norm(o.pose.center - true))
     assert np.abs(got.pose.center[:2] - true[:2]).max() < 0.006  # m
-    assert np.all(got.pose.size[:2] < np.array(truth["size"][:2]) + 0.003)  # no longer
+    # no more than 3 mm longer than it is (it went 24 mm too long)
+    assert max(got.pose.size[:2]) < max(truth["size"][:2]) + 0.003

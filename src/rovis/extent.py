@@ -896,11 +896,12 @@ class FacingConfig:
     book's side, within ``under_print_px`` pixels of it in both images (a value at or
     under ``under_px`` turns this off, as do no high-passed images), is moved too where
     the strip between, in the left image, shows the cover's print: from 1.5 px beyond the
-    side to 1.5 px short of that book's side (3 px wide at least, so a side 6 px short or
-    less is not asked), and each half of it where it is 6 px wide or more, it matches
-    between the images at the cover's height, and better than on the desk (the sweep's
-    ``strip_min_ncc`` and ``min_gap``); the side lay on a line of its print. The inside
-    test (``under_inner``) is not asked of such a side: what lies inside it is more print.
+    side to 1.5 px short of that book's side (3 px wide at least, so a side under 6 px
+    short is not asked), and each half of it where it is 6 px wide or more (and wide
+    enough to sample), it matches between the images at the cover's height, and better
+    than on the desk (the sweep's ``strip_min_ncc`` and ``min_gap``); the side lay on a
+    line of its print. Where the nearest move is such a side's, the inside test
+    (``under_inner``) is not asked: what lies inside it is more print.
     """
 
     enabled: bool = True
@@ -1774,8 +1775,9 @@ def under_taller(P: NDArray[np.float64], s: int, taller: Sequence[NDArray[np.flo
     With ``texture``, a side that lies short of the taller book's side, by up to
     ``cfg.under_print_px`` in both images, is moved too where the strip between is the
     cover's print (:func:`_print_between`): the side lay on a line of its print, the
-    cover in view beyond it up to the taller book's edge. The inside test is not asked
-    of it (an edge of the other polarity inside it is more print, not the cover's edge).
+    cover in view beyond it up to the taller book's edge. Where the nearest move is such
+    a side's, the inside test is not asked (an edge of the other polarity inside it is
+    more print, not the cover's edge).
 
     Parameters
     ----------
@@ -1881,8 +1883,9 @@ def _print_between(P: NDArray[np.float64], s: int, top: NDArray[np.float64], gap
     between the images at the cover's height with an NCC of ``cfg.strip_min_ncc`` or more,
     and by ``cfg.min_gap`` better than on the desk (:func:`rovis.sweep.side_strip_ncc`).
     (A strip of print, then the cover's edge and its page block, matches at the cover's
-    height by its inner half alone.) False where ``top`` is not seen beyond the side, or
-    the strip is under 3 px wide (it tells nothing)."""
+    height by its inner half alone.) A half too thin to sample (a side about level in the
+    image) tells nothing and is not asked. False where ``top`` is not seen beyond the
+    side, or the strip is under 3 px wide or gives no sweep (it tells nothing)."""
     near, far = 1.5, gap_px - 1.5
     if texture is None or far - near < 3.0:
         return False
@@ -1892,12 +1895,18 @@ def _print_between(P: NDArray[np.float64], s: int, top: NDArray[np.float64], gap
         return False  # (the taller book's side seen inward of this one: no strip between)
     height = float(np.mean(geometry.plane_distance(desk_plane, P)))
     half = 0.5 * (near + far)
-    for a, b in ([(near, far)] if far - near < 6.0 else [(near, half), (half, far)]):
+    strips = [(near, far)] + ([(near, half), (half, far)] if far - near >= 6.0 else [])
+    for k, (a, b) in enumerate(strips):
         ncc = side_strip_ncc(texture["left"], texture["right"], Q["left"], Q["right"], q,
                              desk_plane, [height, 0.0], s, near_px=a, far_px=b)
-        if ncc is None or ncc[0] < cfg.strip_min_ncc or ncc[0] - ncc[1] <= cfg.min_gap:
+        if ncc is None:
+            if k == 0:
+                return False  # the whole strip gives no sweep
+            continue  # a half too thin to sample
+        if ncc[0] < cfg.strip_min_ncc or ncc[0] - ncc[1] <= cfg.min_gap:
             return False
     return True
+
 
 def _edge_beyond(side: NDArray[np.float64], top: NDArray[np.float64],
                  Q: dict[str, NDArray[np.float64]], grads: dict[str, Gradients],
