@@ -1816,14 +1816,14 @@ def under_taller(P: NDArray[np.float64], s: int, taller: Sequence[NDArray[np.flo
     if n @ (m - P.mean(axis=0)) < 0:
         n = -n  # outward
     reach = max(cfg.under_px, cfg.under_print_px if texture is not None else 0.0)
+    seen = {c: geometry.project(Q[c], np.array([a, b])) for c in Q}  # the side, each image
     moves = []
     for PB in taller:
         for t in range(4):
             top = PB[[t, (t + 1) % 4]]
             # how far the side lies from that book's side in each image, nearest and
             # furthest (inf: not along it, or further than reach)
-            gaps = {c: _on_side(geometry.project(Q[c], np.array([a, b])),
-                                geometry.project(Q[c], top), cfg, reach) for c in Q}
+            gaps = {c: _on_side(seen[c], geometry.project(Q[c], top), cfg, reach) for c in Q}
             if max(far for _, far in gaps.values()) > reach:
                 continue
             # the taller book's side straight below, in the cover's plane
