@@ -1023,7 +1023,9 @@ class Detector:
         edge, :func:`rovis.segment.boundary.refine_quad`'s ``down``, in one image or
         both). The most edge pixels in both images first, each must pass the pose
         checks; a pair whose left quad holds two or more such pairs that fill it is taken
-        for the union of touching books and gives way to them. A pair with two sides
+        for the union of touching books and gives way to them, and one whose book reaches
+        over the desk footprint of a taller pair gives way to that pair, asked again after
+        the others (``stereo.pool_taller_share``). A pair with two sides
         unseen in either image (a two-sided candidate) must also show a step along each
         refined side in both images and have its corners at one height. A pair with a side
         neither image saw that fails those tests is completed in 3D instead
@@ -1037,6 +1039,7 @@ class Detector:
         # it is read: flat reads both for every try of a pair)
         Q = {"left": rig.Q_L, "right": rig.Q_R}
         up = desk_plane / np.linalg.norm(desk_plane[:3])
+        on_desk, _, e1, e2 = _plane_frame(desk_plane)
         # the full candidates and those with one side unseen (Segmentation.open_pool),
         # then the small and the late pool: a refined quad is cached by its index in this
         # order, the same in every pass
@@ -1325,7 +1328,55 @@ class Detector:
             area = np.array([cv2.contourArea(q.astype(np.float32)) for q in as_refined[parts]])
             return _is_union(0, as_refined[parts], area, overlap)
 
-        def consider(a: int) -> None:
+        def footprint(P: NDArray[np.float64]) -> NDArray[np.float32]:
+            # world corners (4, 3) as coordinates in the desk plane
+            d = P - on_desk
+            return np.stack([d @ e1, d @ e2], axis=1).astype(np.float32)
+
+        def gives_way(a: int, pair: Pair, book: BookDetection) -> bool:
+            # Whether the book pair a makes reaches over a pool pair standing taller
+            # (StereoConfig.pool_taller_share). Asked of the pairs whose Hough quads lie
+            # over the book's left quad, leave 40 % of it or more uncovered (the book's own
+            # part; not its quad again, at another disparity: a mismatch), stand higher than
+            # the book on their Hough corners and have one side unseen at most (two guessed
+            # sides put a pair anywhere), each refined when its turn comes
+            share = cfg.stereo.pool_taller_share
+            if share >= 1.0:
+                return False
+            height = float(book.pose.size[2])
+
+            def higher(b: int) -> bool:  # on the Hough corners, a centimetre or so off
+                right_b = np.roll(coarse["right"][b], -int(pp.shift[b]), axis=0)
+                P = geometry.triangulate_dlt(Q["left"], Q["right"], coarse["left"][b], right_b)
+                return float(np.mean(geometry.plane_distance(desk_plane, P))) > height
+
+            near = np.array([b for b in order.tolist() if b != a and not over_found(b)
+                             and not (two_open(pool["left"], i[b])
+                                      or two_open(pool["right"], j[b]))
+                             and quad_overlap(coarse["left"][b], pair.left) > 0.1
+                             and _shared(pair.left, coarse["left"][b]) <= 0.6 and higher(b)],
+                            dtype=np.intp)
+            if len(near) == 0:
+                return False
+            settle(near)
+            mine = footprint(np.asarray(book.corners_world))
+            for b in near[ok[near]].tolist():
+                P = geometry.triangulate_dlt(Q["left"], Q["right"], left[b], right[b])
+                heights = geometry.plane_distance(desk_plane, P)
+                # a pair over two surfaces (a union of books) has no one height
+                if np.ptp(heights) > cfg.stereo.two_sided_flatness or \
+                        np.mean(heights) < height + cfg.complete.taller_by or \
+                        _shared(pair.left, left[b]) > 0.6:
+                    continue
+                theirs = footprint(P)
+                inside, _ = cv2.intersectConvexConvex(mine, theirs)
+                if inside > share * cv2.contourArea(theirs):
+                    return True
+            return False
+
+        gave_way: list[int] = []  # the pairs considered again, after the others
+
+        def consider(a: int, again: bool = False) -> None:
             if not free(a) or (ok[a] and union(a)):
                 return
             if not ok[a] and not (complete(a) and free(a)):
@@ -1350,6 +1401,9 @@ class Detector:
             if book is None or (late and book.reprojection_error_px
                                 > cfg.stereo.late_max_reprojection_px):
                 return
+            if ok[a] and not again and gives_way(a, pair, book):
+                gave_way.append(a)
+                return
             if extra == "small_open" and between_books(book.corners_world):
                 return  # desk between books: its sides theirs
             taken["left"].append(pair.left)
@@ -1368,6 +1422,8 @@ class Detector:
                 deferred.append(a)
             elif all_seen(a):
                 unflat.append(a)
+        for a in gave_way:  # then those that gave way to a taller pair, if still free
+            consider(a, again=True)
         for a in deferred:  # then the pairs to complete in 3D, in the same order
             consider(a)
         # Last, the pairs with every side seen that refined to no flat cover: far from the

@@ -105,6 +105,15 @@ class StereoConfig:
     # edge pixels first, of those over no book found by then (each is a least-squares fit
     # and the pose checks)
     pool_flat_refits: int = 20
+    # Books stand side by side on the desk, not one inside another. A pool pair whose book
+    # reaches over more than pool_taller_share of the desk footprint of another pair of the
+    # pass, one whose Hough quad lies over the book's in the left image, leaving 40 % of it or
+    # more uncovered (not the same quad at another disparity) and whose corners lie at
+    # one height (within two_sided_flatness) CompleteConfig.taller_by or more above the
+    # book's, gives way to it: it is considered again after the pass's other pairs. A cover
+    # flush behind a taller book makes one quad with that book's cover, its far side on
+    # the taller cover, at the cover's height (1 or more: never)
+    pool_taller_share: float = 0.2
     # Where no book is yet, last, a candidate quad of one image (Segmentation.pool) looked
     # for in the other (find_in_other_view) where, refined, its own image shows its sides:
     # every side's step along pool_transfer_seen of it (rovis.segment.boundary.side_evidence),
