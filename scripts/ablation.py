@@ -82,6 +82,8 @@ STEPS: list[tuple[str, list[str]]] = [
     ("a print edge run into the side's own tried", ["trim.print_dip=0"]),
     ("a third print edge tried", ["trim.print_edges=2"]),
     ("a side on a line of print short of a taller book in front", ["facing.under_print_px=0"]),
+    ("a pool pair reaching over a taller pair's footprint gives way to it",
+     ["stereo.pool_taller_share=1"]),
 ]
 
 
