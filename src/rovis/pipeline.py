@@ -1023,9 +1023,9 @@ class Detector:
         edge, :func:`rovis.segment.boundary.refine_quad`'s ``down``, in one image or
         both). The most edge pixels in both images first, each must pass the pose
         checks; a pair whose left quad holds two or more such pairs that fill it is taken
-        for the union of touching books and gives way to them, and one whose book reaches
-        over the desk footprint of a taller pair gives way to that pair, asked again after
-        the others (``stereo.pool_taller_share``). A pair with two sides
+        for the union of touching books and gives way to them, and one whose book covers
+        more than ``stereo.pool_taller_share`` of the desk footprint of a taller pair gives
+        way to that pair, asked again after the other flat pairs. A pair with two sides
         unseen in either image (a two-sided candidate) must also show a step along each
         refined side in both images and have its corners at one height. A pair with a side
         neither image saw that fails those tests is completed in 3D instead
@@ -1328,18 +1328,15 @@ class Detector:
             area = np.array([cv2.contourArea(q.astype(np.float32)) for q in as_refined[parts]])
             return _is_union(0, as_refined[parts], area, overlap)
 
-        def footprint(P: NDArray[np.float64]) -> NDArray[np.float32]:
-            # world corners (4, 3) as coordinates in the desk plane
-            d = P - on_desk
-            return np.stack([d @ e1, d @ e2], axis=1).astype(np.float32)
+        considered = np.zeros(len(i), bool)  # the pairs asked of consider so far
 
         def gives_way(a: int, pair: Pair, book: BookDetection) -> bool:
             # Whether the book pair a makes reaches over a pool pair standing taller
-            # (StereoConfig.pool_taller_share). Asked of the pairs whose Hough quads lie
-            # over the book's left quad, leave 40 % of it or more uncovered (the book's own
-            # part; not its quad again, at another disparity: a mismatch), stand higher than
-            # the book on their Hough corners and have one side unseen at most (two guessed
-            # sides put a pair anywhere), each refined when its turn comes
+            # (StereoConfig.pool_taller_share). Asked of the pairs not yet considered whose
+            # Hough quads lie over the book's left quad, leave 40 % of it or more uncovered
+            # (the book's own part; not its quad again, at another disparity: a mismatch),
+            # stand higher than the book on their Hough corners and have one side unseen
+            # at most (two guessed sides put a pair anywhere), each refined if not yet
             share = cfg.stereo.pool_taller_share
             if share >= 1.0:
                 return False
@@ -1350,25 +1347,26 @@ class Detector:
                 P = geometry.triangulate_dlt(Q["left"], Q["right"], coarse["left"][b], right_b)
                 return float(np.mean(geometry.plane_distance(desk_plane, P))) > height
 
-            near = np.array([b for b in order.tolist() if b != a and not over_found(b)
+            near = np.array([b for b in order.tolist() if not considered[b]
+                             and quad_overlap(coarse["left"][b], pair.left) > 0.1
+                             and _shared(pair.left, coarse["left"][b]) <= 0.6
                              and not (two_open(pool["left"], i[b])
                                       or two_open(pool["right"], j[b]))
-                             and quad_overlap(coarse["left"][b], pair.left) > 0.1
-                             and _shared(pair.left, coarse["left"][b]) <= 0.6 and higher(b)],
-                            dtype=np.intp)
+                             and not over_found(b) and higher(b)], dtype=np.intp)
             if len(near) == 0:
                 return False
             settle(near)
-            mine = footprint(np.asarray(book.corners_world))
+            mine = _in_desk_plane(np.asarray(book.corners_world), on_desk, e1, e2)
             for b in near[ok[near]].tolist():
                 P = geometry.triangulate_dlt(Q["left"], Q["right"], left[b], right[b])
                 heights = geometry.plane_distance(desk_plane, P)
-                # a pair over two surfaces (a union of books) has no one height
-                if np.ptp(heights) > cfg.stereo.two_sided_flatness or \
-                        np.mean(heights) < height + cfg.complete.taller_by or \
-                        _shared(pair.left, left[b]) > 0.6:
+                # one height (a pair over two surfaces has none), and refined, still no
+                # more than 60 % of the book's quad
+                if (np.ptp(heights) > cfg.stereo.two_sided_flatness
+                        or np.mean(heights) < height + cfg.complete.taller_by
+                        or _shared(pair.left, left[b]) > 0.6):
                     continue
-                theirs = footprint(P)
+                theirs = _in_desk_plane(P, on_desk, e1, e2)
                 inside, _ = cv2.intersectConvexConvex(mine, theirs)
                 if inside > share * cv2.contourArea(theirs):
                     return True
@@ -1377,6 +1375,7 @@ class Detector:
         gave_way: list[int] = []  # the pairs considered again, after the others
 
         def consider(a: int, again: bool = False) -> None:
+            considered[a] = True
             if not free(a) or (ok[a] and union(a)):
                 return
             if not ok[a] and not (complete(a) and free(a)):
@@ -1401,11 +1400,11 @@ class Detector:
             if book is None or (late and book.reprojection_error_px
                                 > cfg.stereo.late_max_reprojection_px):
                 return
+            if extra == "small_open" and between_books(book.corners_world):
+                return  # desk between books: its sides theirs
             if ok[a] and not again and gives_way(a, pair, book):
                 gave_way.append(a)
                 return
-            if extra == "small_open" and between_books(book.corners_world):
-                return  # desk between books: its sides theirs
             taken["left"].append(pair.left)
             taken["right"].append(pair.right)
             out.append((pair, book))
@@ -1444,7 +1443,7 @@ class Detector:
             refit = self._flat_refit(rig, Pair(left[a], right[a], 1.0, 0.0), desk_plane, None)
             if refit is not None:
                 left[a], right[a], ok[a] = refit[0].left, refit[0].right, True
-                consider(a)
+                consider(a, again=True)  # (the pairs it might give way to were asked)
         return out
 
     def _from_pool_one_image(self, rig: StereoRig, segs: dict[str, Segmentation],
@@ -2922,8 +2921,7 @@ class Detector:
         owners: set[int] = set()
 
         def on_desk_2d(P: NDArray[np.float64]) -> NDArray[np.float32]:
-            d = P - on_desk  # (4, 3) world corners, as coordinates in the desk plane
-            return np.stack([d @ e1, d @ e2], axis=1).astype(np.float32)
+            return _in_desk_plane(P, on_desk, e1, e2)
 
         def strip_of(A: BookDetection, B: BookDetection) -> NDArray[np.float64] | None:
             # the smallest rectangle (4, 2; desk coordinates, in order) around the two
@@ -3266,6 +3264,14 @@ def _pair_at(rig: StereoRig, pair: Pair, P: NDArray[np.float64]) -> Pair:
     """``pair`` with its corners moved to the projections of world corners ``P`` (4, 3) in
     both ideal images (a cover placed in 3D: its images agree exactly)."""
     return replace(pair, left=geometry.project(rig.Q_L, P), right=geometry.project(rig.Q_R, P))
+
+
+def _in_desk_plane(P: NDArray[np.float64], on_desk: NDArray[np.float64],
+                   e1: NDArray[np.float64], e2: NDArray[np.float64]) -> NDArray[np.float32]:
+    """World points ``P`` (N, 3) as coordinates (N, 2) in the desk plane's frame
+    (:func:`rovis.sweep._plane_frame`: its origin ``on_desk`` and axes ``e1``, ``e2``)."""
+    d = P - on_desk
+    return np.stack([d @ e1, d @ e2], axis=1).astype(np.float32)
 
 
 def _shared(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:

@@ -105,14 +105,18 @@ class StereoConfig:
     # edge pixels first, of those over no book found by then (each is a least-squares fit
     # and the pose checks)
     pool_flat_refits: int = 20
-    # Books stand side by side on the desk, not one inside another. A pool pair whose book
-    # reaches over more than pool_taller_share of the desk footprint of another pair of the
-    # pass, one whose Hough quad lies over the book's in the left image, leaving 40 % of it or
-    # more uncovered (not the same quad at another disparity) and whose corners lie at
-    # one height (within two_sided_flatness) CompleteConfig.taller_by or more above the
-    # book's, gives way to it: it is considered again after the pass's other pairs. A cover
-    # flush behind a taller book makes one quad with that book's cover, its far side on
-    # the taller cover, at the cover's height (1 or more: never)
+    # Books stand side by side on the desk, not one inside another. A pool pair that
+    # refined flat and whose book covers more than pool_taller_share of the desk footprint
+    # of a pair of the pass not yet considered gives way to it: it is asked again after
+    # the pass's other flat pairs (before the completions and refits), and taken then if
+    # still free (it may lie over the taller book, if found, by up to
+    # transfer_max_overlap in each image). That pair's Hough quad lies over the book's
+    # left quad (more than 10 % of the smaller), leaving 40 % of it or more uncovered (not
+    # the book's own quads at another disparity), over no book found; it stands higher
+    # than the book on its Hough corners, has one side unseen at most and, refined, its
+    # corners at one height (within two_sided_flatness) CompleteConfig.taller_by or more
+    # above the book's. A cover flush behind a taller book made one quad with that book's
+    # cover, its far side on the taller cover, at the cover's height (1 or more: never)
     pool_taller_share: float = 0.2
     # Where no book is yet, last, a candidate quad of one image (Segmentation.pool) looked
     # for in the other (find_in_other_view) where, refined, its own image shows its sides:
