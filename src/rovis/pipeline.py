@@ -1328,6 +1328,12 @@ class Detector:
             area = np.array([cv2.contourArea(q.astype(np.float32)) for q in as_refined[parts]])
             return _is_union(0, as_refined[parts], area, overlap)
 
+        def as_pair(a: int) -> Pair:  # eq. 1 order, kept after refinement
+            quality = float(min(pool["left"].support[i[a]].mean(),
+                                pool["right"].support[j[a]].mean()))
+            return _in_eq1_order(Pair(left[a], right[a], quality, float(pp.error_px[a]),
+                                      source="candidates", small_open=extra == "small_open"))
+
         considered = np.zeros(len(i), bool)  # the pairs asked of consider so far
 
         def gives_way(a: int, pair: Pair, book: BookDetection) -> bool:
@@ -1336,7 +1342,8 @@ class Detector:
             # Hough quads lie over the book's left quad, leave 40 % of it or more uncovered
             # (the book's own part; not its quad again, at another disparity: a mismatch),
             # stand higher than the book on their Hough corners and have one side unseen
-            # at most (two guessed sides put a pair anywhere), each refined if not yet
+            # at most (two guessed sides put a pair anywhere), each refined if not yet, and
+            # reconstructed where it stands taller over the book's footprint
             share = cfg.stereo.pool_taller_share
             if share >= 1.0:
                 return False
@@ -1368,7 +1375,13 @@ class Detector:
                     continue
                 theirs = _in_desk_plane(P, on_desk, e1, e2)
                 inside, _ = cv2.intersectConvexConvex(mine, theirs)
-                if inside > share * cv2.contourArea(theirs):
+                if inside <= share * cv2.contourArea(theirs):
+                    continue
+                # ...and it makes a book that tall, by the checks every pair passes: a
+                # mismatch over a printed cover is laid at the print's height or dropped
+                _, taller, _ = self._reconstruct_or_why(rig, as_pair(b), desk_plane, texture)
+                if taller is not None and \
+                        float(taller.pose.size[2]) >= height + cfg.complete.taller_by:
                     return True
             return False
 
@@ -1391,12 +1404,7 @@ class Detector:
                         or np.ptp(heights) > cfg.stereo.two_sided_flatness) and not (
                         complete(a) and free(a)):
                     return
-            quality = float(min(pool["left"].support[i[a]].mean(),
-                                pool["right"].support[j[a]].mean()))
-            pair, book, _ = self._reconstruct_or_why(  # eq. 1 order, kept after refinement
-                rig, _in_eq1_order(Pair(left[a], right[a], quality, float(pp.error_px[a]),
-                                        source="candidates", small_open=extra == "small_open")),
-                desk_plane, texture)
+            pair, book, _ = self._reconstruct_or_why(rig, as_pair(a), desk_plane, texture)
             if book is None or (late and book.reprojection_error_px
                                 > cfg.stereo.late_max_reprojection_px):
                 return
