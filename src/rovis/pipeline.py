@@ -1451,7 +1451,7 @@ class Detector:
             refit = self._flat_refit(rig, Pair(left[a], right[a], 1.0, 0.0), desk_plane, None)
             if refit is not None:
                 left[a], right[a], ok[a] = refit[0].left, refit[0].right, True
-                consider(a, again=True)  # (the pairs it might give way to were asked)
+                consider(a, again=True)  # (every pair it might give way to had its turn)
         return out
 
     def _from_pool_one_image(self, rig: StereoRig, segs: dict[str, Segmentation],
