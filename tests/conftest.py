@@ -24,6 +24,16 @@ def pytest_report_header(config: pytest.Config) -> str:
     return f"rovis: OpenCV {cv2.__version__} (constraints.txt pins opencv-python-headless {pinned})"
 
 
+def nearest_book(result, centre, on_desk: bool = False):  # type: ignore[no-untyped-def]
+    """The book of detection ``result`` (:class:`rovis.results.FrameResult`) whose centre
+    lies nearest ``centre`` (3,) (a true book's, metres), and how far (m): in space, or with
+    ``on_desk`` over the desk (x, y alone)."""
+    c = np.asarray(centre, dtype=np.float64)
+    axes = slice(0, 2) if on_desk else slice(0, 3)
+    book = min(result.objects, key=lambda o: np.linalg.norm(o.pose.center[axes] - c[axes]))
+    return book, float(np.linalg.norm(book.pose.center[axes] - c[axes]))
+
+
 @pytest.fixture
 def rig() -> StereoRig:
     """A Bumblebee2-like rig 1.1 m above a desk, looking down 55°, world = desk frame."""

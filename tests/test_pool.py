@@ -19,7 +19,7 @@ from rovis.synth import render, sample_scene
 from rovis.synth.scene import Book
 from rovis.synth.textures import CoverSpec
 
-from conftest import ideal_images
+from conftest import ideal_images, nearest_book
 
 DESK = np.array([0.0, 0.0, 1.0, 0.0])  # z = 0, normal up
 
@@ -648,14 +648,6 @@ def test_detect_lays_a_cover_with_a_side_far_out_at_one_end_again(scene, book):
     assert _near("table1", 1, scene, book, ["unskew_reach=0"])[0] > 0.01
 
 
-def _nearest_object(res, centre):
-    """The detected book whose centre lies nearest ``centre`` (3,) on the desk, and how far
-    (m)."""
-    c = np.asarray(centre)[:2]
-    got = min(res.objects, key=lambda o: np.linalg.norm(o.pose.center[:2] - c))
-    return got, float(np.linalg.norm(got.pose.center[:2] - c))
-
-
 @pytest.mark.parametrize("scene", [101, 117])
 def test_a_cover_flush_behind_a_taller_book_gives_way_to_it(scene):
     # The Table II renders (rovis synth --protocol table2 --n 128 --seed 1), scenes 101
@@ -670,9 +662,9 @@ def test_a_cover_flush_behind_a_taller_book_gives_way_to_it(scene):
     for share, kept in ((0.2, True), (1.0, False)):
         settings = [f"stereo.pool_taller_share={share}"]
         res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
-        got_0, off_0 = _nearest_object(res, true_0["center"])
+        got_0, off_0 = nearest_book(res, true_0["center"], on_desk=True)
         longer_0 = float(max(got_0.pose.size[:2]) - max(true_0["size"][:2]))
-        _, off_1 = _nearest_object(res, true_1["center"])
+        _, off_1 = nearest_book(res, true_1["center"], on_desk=True)
         if kept:
             assert off_0 < 0.005 and abs(longer_0) < 0.005  # m
             assert off_1 < 0.008
@@ -701,5 +693,5 @@ def test_a_book_gives_way_to_no_mismatch_of_its_own_quads(protocol, seed, scene,
     sc, r = dataset_scene(protocol, seed, scene)
     res = Detector(sc.rig, DetectConfig(method=method)).detect(r.left, r.right)
     c = np.asarray(r.truth["books"][book]["center"])
-    got = min(res.objects, key=lambda o: np.linalg.norm(o.pose.center - c))
+    got, _ = nearest_book(res, c)
     assert np.abs(got.pose.center - c).max() < tol  # m

@@ -19,6 +19,7 @@ from rovis.segment.control import small_candidates
 from rovis.segment.methods import segment
 from rovis.segment.quads import QuadConfig, Quads, _distinct_apart, _shoelace, order_corners
 
+from conftest import nearest_book
 from dataset_scene import dataset_scene
 
 
@@ -145,7 +146,7 @@ def test_a_piece_of_a_cover_from_the_last_pass_does_not_keep_the_cover_short():
     sc, r = dataset_scene("table1", 1, 67)
     book = r.truth["books"][1]
     res = Detector(sc.rig, DetectConfig()).detect(r.left, r.right)
-    near = min(res.objects, key=lambda o: np.linalg.norm(o.pose.center - book["center"]))
+    near, _ = nearest_book(res, book["center"])
     assert np.linalg.norm(near.pose.center - book["center"]) < 0.01  # m
     assert abs(max(near.pose.size[:2]) - max(book["size"][:2])) < 0.02  # m
     assert any("from small candidates with sides unseen" in w for w in res.warnings)

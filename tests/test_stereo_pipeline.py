@@ -14,6 +14,7 @@ from rovis.stereo import StereoConfig, find_in_other_view, match_quads, rectangl
 from rovis.synth import render, sample_scene
 from rovis.trim import TrimConfig
 
+from conftest import nearest_book
 from dataset_scene import dataset_scene
 
 
@@ -607,7 +608,7 @@ def test_a_cover_tilted_by_one_images_cover_edge_step_is_refit_without_it():
                            trim=TrimConfig(map_height=map_height),
                            flat_refit_sides=1.0 if sides else 0.0)
         res = Detector(sc.rig, cfg).detect(r.left, r.right)
-        return min(res.objects, key=lambda o: np.linalg.norm(o.pose.center - book["center"]))
+        return nearest_book(res, book["center"])[0]
 
     o = nearest(True)
     assert np.linalg.norm(o.pose.center - book["center"]) < 0.01  # m
@@ -788,7 +789,7 @@ def test_a_side_on_the_shadows_edge_is_left_out_of_the_flat_refit(sides):
     settings = [] if sides else ["flat_refit_sides=0"]
     res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
     truth = r.truth["books"][3]
-    book = min(res.objects, key=lambda o: np.linalg.norm(o.pose.center[:2] - truth["center"][:2]))
+    book, _ = nearest_book(res, truth["center"], on_desk=True)
     assert np.linalg.norm(book.pose.center[:2] - truth["center"][:2]) < 0.03  # m
     height_error = abs(book.pose.size[2] - truth["size"][2])
     if sides:

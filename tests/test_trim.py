@@ -23,6 +23,7 @@ from rovis.sweep import Sweep
 from rovis.trim import (TrimConfig, _foot_offset, _run_peaks, cut_cover, grow_run,
                         height_profile, lateral_grow, map_height, print_grow, trim_side)
 
+from conftest import nearest_book
 from dataset_scene import dataset_scene
 
 CFG = TrimConfig()
@@ -241,7 +242,7 @@ def test_detect_keeps_a_cover_its_sides_hold_off_the_maps_height():
     heights = []
     for settings in ([], ["trim.map_sides=0"]):
         res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
-        got = min(res.objects, key=lambda o: np.linalg.norm(o.pose.center - true))
+        got = nearest_book(res, true)[0]
         heights.append(got.pose.size[2])
         if not settings:
             assert np.linalg.norm(got.pose.center - true) < 0.003  # m
@@ -527,7 +528,7 @@ def _found_nearest(sc, r, truth, settings):
     """The book :class:`Detector` with ``settings`` finds in rendering ``r`` of scene
     ``sc`` whose centre lies nearest ``truth``'s (a truth.json book)."""
     res = Detector(sc.rig, with_settings(DetectConfig(), settings)).detect(r.left, r.right)
-    return min(res.objects, key=lambda o: np.linalg.norm(o.pose.center - truth["center"]))
+    return nearest_book(res, truth["center"])[0]
 
 
 @pytest.mark.parametrize("scene,book,grown", [
