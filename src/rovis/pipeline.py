@@ -1334,6 +1334,13 @@ class Detector:
             return _in_eq1_order(Pair(left[a], right[a], quality, float(pp.error_px[a]),
                                       source="candidates", small_open=extra == "small_open"))
 
+        def kept_back(book: BookDetection) -> bool:
+            # a book the pass does not take though the pose checks pass
+            if late and book.reprojection_error_px > cfg.stereo.late_max_reprojection_px:
+                return True
+            # (small_open) the desk between books: its sides theirs
+            return extra == "small_open" and between_books(book.corners_world)
+
         considered = np.zeros(len(i), bool)  # the pairs asked of consider so far
 
         def gives_way(a: int, pair: Pair, book: BookDetection) -> bool:
@@ -1377,10 +1384,10 @@ class Detector:
                 inside, _ = cv2.intersectConvexConvex(mine, theirs)
                 if inside <= share * cv2.contourArea(theirs):
                     continue
-                # ...and it makes a book that tall, by the checks every pair passes: a
+                # ...and it makes a book that tall, by the checks its own turn asks: a
                 # mismatch over a printed cover is laid at the print's height or dropped
                 _, taller, _ = self._reconstruct_or_why(rig, as_pair(b), desk_plane, texture)
-                if taller is not None and \
+                if taller is not None and not kept_back(taller) and \
                         float(taller.pose.size[2]) >= height + cfg.complete.taller_by:
                     return True
             return False
@@ -1405,11 +1412,8 @@ class Detector:
                         complete(a) and free(a)):
                     return
             pair, book, _ = self._reconstruct_or_why(rig, as_pair(a), desk_plane, texture)
-            if book is None or (late and book.reprojection_error_px
-                                > cfg.stereo.late_max_reprojection_px):
+            if book is None or kept_back(book):
                 return
-            if extra == "small_open" and between_books(book.corners_world):
-                return  # desk between books: its sides theirs
             if ok[a] and not again and gives_way(a, pair, book):
                 gave_way.append(a)
                 return
