@@ -115,7 +115,8 @@ class StereoConfig:
     # the book's own quads at another disparity), over no book found; it stands higher
     # than the book on its Hough corners, has one side unseen at most and, refined, its
     # corners at one height (within two_sided_flatness) CompleteConfig.taller_by or more
-    # above the book's, and makes a book that tall by the pose checks (its print swept).
+    # above the book's, and makes a book that tall by the pose checks (its print swept)
+    # and its pass's own bounds.
     # A cover flush behind a taller book made one quad with that book's cover, its far
     # side on the taller cover, at the cover's height (1 or more: never)
     pool_taller_share: float = 0.2
