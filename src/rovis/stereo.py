@@ -31,6 +31,7 @@ from rovis.segment.edges import Gradients
 from rovis.sweep import on_plane
 
 _PATCH = (48, 36)  # rectified cover patch, px
+_POOL_BLOCK = 8192  # pairs of candidates per block of pool_pairs' corner test
 _PLAIN_STD = 4.0  # grey levels: a cover patch varying less than this is plain
 _PLAIN_MEAN = 20.0  # grey levels: two plain patches this close in brightness look alike
 _HIGHLIGHT_NCC = 0.5  # two plain patches but for a highlight: above StereoConfig.min_ncc,
@@ -362,14 +363,21 @@ def pool_pairs(pool_left: ArrayLike, pool_right: ArrayLike, Q_L: ArrayLike, Q_R:
     if len(i) == 0:
         return none
     shifts = np.array([np.roll(np.arange(4), -s) for s in range(4)])
-    cand = qR[j][:, shifts]  # (P, 4 shifts, 4 corners, 2)
-    err = _point_segment_distance(cand, near[i][:, None], far[i][:, None]).mean(axis=2)
+    # the corner test in blocks of pairs: a frame of many candidates has half a million
+    # pairs past the coarse gate, whose arrays in one piece would not stay in cache
+    err = np.empty((len(i), 4))
+    for s in range(0, len(i), _POOL_BLOCK):
+        b = slice(s, s + _POOL_BLOCK)
+        cand = qR[j[b]][:, shifts]  # (block, 4 shifts, 4 corners, 2)
+        err[b] = _point_segment_distance(cand, near[i[b]][:, None],
+                                         far[i[b]][:, None]).mean(axis=2)
     s_best = np.argmin(err, axis=1)
     e_best = err[np.arange(len(i)), s_best]
     ok = e_best <= cfg.max_error_px
     if not ok.any():
         return none
-    i, j, s_best, e_best, corners_r = i[ok], j[ok], s_best[ok], e_best[ok], cand[ok, s_best[ok]]
+    i, j, s_best, e_best = i[ok], j[ok], s_best[ok], e_best[ok]
+    corners_r = qR[j[:, None], shifts[s_best]]  # (P, 4, 2), each in its best shift
     P = geometry.triangulate_dlt(Q_L, Q_R, qL[i].reshape(-1, 2),
                                  corners_r.reshape(-1, 2)).reshape(-1, 4, 3)
     heights = (cfg.min_height - height_slack, cfg.max_cover_height + height_slack)
@@ -730,10 +738,26 @@ def _segments(p_L: NDArray[np.float64], Q_L: NDArray[np.float64], Q_R: NDArray[n
 
 def _point_segment_distance(p: NDArray[np.float64], a: NDArray[np.float64],
                             b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Distance from points ``p`` to segments ``a``–``b`` (broadcast over leading axes)."""
-    ab = b - a
-    t = np.clip(np.sum((p - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-12), 0, 1)
-    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
+    """Distance from points ``p`` to segments ``a``–``b`` (broadcast over leading axes).
+
+    Parameters
+    ----------
+    p, a, b : ndarray, shape (..., 2)
+        Points and the segments' end points, pixels.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Pixels.
+    """
+    # x and y apart: a reduction over an axis of length 2 costs numpy more than the
+    # arithmetic (the same sums, so the same floats as the vector form)
+    px, py, ax, ay = p[..., 0], p[..., 1], a[..., 0], a[..., 1]
+    abx, aby = b[..., 0] - ax, b[..., 1] - ay
+    t = np.clip(((px - ax) * abx + (py - ay) * aby) / np.maximum(abx * abx + aby * aby, 1e-12),
+                0, 1)
+    dx, dy = px - (ax + t * abx), py - (ay + t * aby)
+    return np.sqrt(dx * dx + dy * dy)
 
 
 def _cover_ncc(gray_l: NDArray[np.uint8], c_l: NDArray[np.float64], gray_r: NDArray[np.uint8],
