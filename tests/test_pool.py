@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from rovis import geometry
+from rovis import geometry, stereo
 from rovis.pipeline import DetectConfig, Detector, Pair, _is_union, _skew_deg, with_settings
 from rovis.segment import gradients
 from rovis.segment.boundary import Segmentation
@@ -108,6 +108,41 @@ def test_pool_pairs_drops_a_tilted_pair_and_a_pattern_on_the_desk(book):
                     [geometry.project(rig.Q_R, q) for q in quads], rig.Q_L, rig.Q_R,
                     desk_plane=DESK)
     assert pp.left.tolist() == [0] and pp.right.tolist() == [0]
+
+
+def test_pool_pairs_gives_the_same_pairs_in_blocks_of_any_size(book, monkeypatch):
+    # many candidates: covers of three sizes at three heights, each also seen 1-2 px off
+    _, _, rig = book
+    rng = np.random.default_rng(0)
+    covers = [_rectangle(center=(x, y), size=size, z=z, yaw_deg=yaw)
+              for x, y in ((0.3, 0.2), (0.5, 0.35), (0.7, 0.5))
+              for size in ((0.20, 0.14), (0.16, 0.12), (0.24, 0.10))
+              for z, yaw in ((0.02, 10.0), (0.04, 25.0), (0.06, -15.0))]
+    left, right = ([geometry.project(Q, P) + rng.normal(0, 1.0, (4, 2))
+                    for P in covers for _ in range(2)] for Q in (rig.Q_L, rig.Q_R))
+    whole = pool_pairs(left, right, rig.Q_L, rig.Q_R, desk_plane=DESK)
+    monkeypatch.setattr(stereo, "_POOL_BLOCK", 7)  # a block ends inside a left quad's run
+    blocks = pool_pairs(left, right, rig.Q_L, rig.Q_R, desk_plane=DESK)
+    assert len(whole) >= 2 * len(covers)  # each cover's two quads in each image, at least
+    for field in ("left", "right", "corners_right", "shift", "error_px"):
+        np.testing.assert_array_equal(getattr(blocks, field), getattr(whole, field))
+
+
+def test_point_segment_distance_is_the_distance_to_the_nearest_point_of_the_segment():
+    rng = np.random.default_rng(1)
+    p, a, b = rng.uniform(-50, 50, (3, 200, 2))
+    b[:20] = a[:20]  # a segment of no length: the distance to its point
+    t = np.linspace(0, 1, 20001)[:, None, None]
+    brute = np.linalg.norm(p - (a + t * (b - a)), axis=-1).min(axis=0)
+    d = stereo._point_segment_distance(p, a, b)
+    np.testing.assert_allclose(d, brute, atol=0.01)  # pixels (the brute force's 1/20000 step)
+    np.testing.assert_allclose(d[:20], np.linalg.norm(p[:20] - a[:20], axis=-1))
+    # broadcast over leading axes, as pool_pairs asks: (P, 4 shifts, 4 corners)
+    many = stereo._point_segment_distance(p[:48].reshape(3, 4, 4, 2), a[None, None, :4],
+                                          b[None, None, :4])
+    np.testing.assert_allclose(many.reshape(-1, 4),
+                               stereo._point_segment_distance(p[:48].reshape(-1, 4, 2),
+                                                              a[:4], b[:4]))
 
 
 def _ends_slid(q, px):
