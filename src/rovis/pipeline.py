@@ -1342,6 +1342,7 @@ class Detector:
             return extra == "small_open" and between_books(book.corners_world)
 
         considered = np.zeros(len(i), bool)  # the pairs asked of consider so far
+        hough_height: dict[int, float] = {}  # each pair's, on its Hough corners (gives_way)
 
         def gives_way(a: int, pair: Pair, book: BookDetection) -> bool:
             # Whether the book pair a makes reaches over a pool pair standing taller
@@ -1357,9 +1358,12 @@ class Detector:
             height = float(book.pose.size[2])
 
             def higher(b: int) -> bool:  # on the Hough corners, a centimetre or so off
-                right_b = np.roll(coarse["right"][b], -int(pp.shift[b]), axis=0)
-                P = geometry.triangulate_dlt(Q["left"], Q["right"], coarse["left"][b], right_b)
-                return float(np.mean(geometry.plane_distance(desk_plane, P))) > height
+                if b not in hough_height:
+                    right_b = np.roll(coarse["right"][b], -int(pp.shift[b]), axis=0)
+                    P = geometry.triangulate_dlt(Q["left"], Q["right"], coarse["left"][b],
+                                                 right_b)
+                    hough_height[b] = float(np.mean(geometry.plane_distance(desk_plane, P)))
+                return hough_height[b] > height
 
             near = np.array([b for b in order.tolist() if not considered[b]
                              and quad_overlap(coarse["left"][b], pair.left) > 0.1
