@@ -137,6 +137,14 @@ def test_point_segment_distance_is_the_distance_to_the_nearest_point_of_the_segm
     d = stereo._point_segment_distance(p, a, b)
     np.testing.assert_allclose(d, brute, atol=0.01)  # pixels (the brute force's 1/20000 step)
     np.testing.assert_allclose(d[:20], np.linalg.norm(p[:20] - a[:20], axis=-1))
+    # world points too (rovis.split's outlines, metres), and in the plane z = 0 exactly the
+    # floats of image points (the fast path for D = 2 adds as the vector form does)
+    p3, a3, b3 = (np.concatenate([v, rng.uniform(-50, 50, (200, 1))], axis=1)
+                  for v in (p, a, b))
+    brute3 = np.linalg.norm(p3 - (a3 + t * (b3 - a3)), axis=-1).min(axis=0)
+    np.testing.assert_allclose(stereo._point_segment_distance(p3, a3, b3), brute3, atol=0.01)
+    flat = [np.concatenate([v, np.zeros((200, 1))], axis=1) for v in (p, a, b)]
+    np.testing.assert_array_equal(stereo._point_segment_distance(*flat), d)
     # broadcast over leading axes, as pool_pairs asks: (P, 4 shifts, 4 corners)
     many = stereo._point_segment_distance(p[:48].reshape(3, 4, 4, 2), a[None, None, :4],
                                           b[None, None, :4])

@@ -364,13 +364,14 @@ def pool_pairs(pool_left: ArrayLike, pool_right: ArrayLike, Q_L: ArrayLike, Q_R:
         return none
     shifts = np.array([np.roll(np.arange(4), -s) for s in range(4)])
     # the corner test in blocks of pairs: a frame of many candidates has half a million
-    # pairs past the coarse gate, whose arrays in one piece would not stay in cache
+    # pairs past the coarse gate, whose arrays in one piece (hundreds of megabytes) took
+    # four to five times as long (build/mx scene 17)
     err = np.empty((len(i), 4))
-    for s in range(0, len(i), _POOL_BLOCK):
-        b = slice(s, s + _POOL_BLOCK)
-        cand = qR[j[b]][:, shifts]  # (block, 4 shifts, 4 corners, 2)
-        err[b] = _point_segment_distance(cand, near[i[b]][:, None],
-                                         far[i[b]][:, None]).mean(axis=2)
+    for start in range(0, len(i), _POOL_BLOCK):
+        block = slice(start, start + _POOL_BLOCK)
+        cand = qR[j[block]][:, shifts]  # (block, 4 shifts, 4 corners, 2)
+        err[block] = _point_segment_distance(cand, near[i[block]][:, None],
+                                             far[i[block]][:, None]).mean(axis=2)
     s_best = np.argmin(err, axis=1)
     e_best = err[np.arange(len(i)), s_best]
     ok = e_best <= cfg.max_error_px
@@ -742,16 +743,23 @@ def _point_segment_distance(p: NDArray[np.float64], a: NDArray[np.float64],
 
     Parameters
     ----------
-    p, a, b : ndarray, shape (..., 2)
-        Points and the segments' end points, pixels.
+    p, a, b : ndarray, shape (..., D)
+        Points and the segments' end points: image points (D = 2, pixels) or world points
+        (D = 3, metres: a cover's outline in :mod:`rovis.split`).
 
     Returns
     -------
     ndarray, shape (...)
-        Pixels.
+        In the points' unit.
     """
-    # x and y apart: a reduction over an axis of length 2 costs numpy more than the
-    # arithmetic (the same sums, so the same floats as the vector form)
+    if p.shape[-1] != 2 or a.shape[-1] != 2 or b.shape[-1] != 2:
+        ab = b - a
+        t = np.clip(np.sum((p - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-12),
+                    0, 1)
+        return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
+    # image points, x and y apart: numpy's reduction over an axis of length 2 costs more
+    # than the arithmetic (pool_pairs' half a million pairs); the same sums in the same
+    # order, so the same floats as the form above
     px, py, ax, ay = p[..., 0], p[..., 1], a[..., 0], a[..., 1]
     abx, aby = b[..., 0] - ax, b[..., 1] - ay
     t = np.clip(((px - ax) * abx + (py - ay) * aby) / np.maximum(abx * abx + aby * aby, 1e-12),
