@@ -111,7 +111,8 @@ def test_pool_pairs_drops_a_tilted_pair_and_a_pattern_on_the_desk(book):
 
 
 def test_pool_pairs_gives_the_same_pairs_in_blocks_of_any_size(book, monkeypatch):
-    # many candidates: covers of three sizes at three heights, each also seen 1-2 px off
+    # many candidates: 27 covers (three places, sizes and heights), each seen twice in each
+    # image with 1 px of noise
     _, _, rig = book
     rng = np.random.default_rng(0)
     covers = [_rectangle(center=(x, y), size=size, z=z, yaw_deg=yaw)
