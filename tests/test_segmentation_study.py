@@ -78,3 +78,42 @@ def test_an_unknown_method_is_refused_with_exit_code_2(capsys):
         study.main(["--n", "1", "--methods", "closed+,bogus"])
     assert e.value.code == 2
     assert "unknown bogus" in capsys.readouterr().err
+
+
+def test_a_quad_5_px_off_is_detected_but_not_found():
+    quad = SQUARE + [5.0, 0.0]  # IoU 195·150 / 205·150 = 0.95
+    found, _, false = study.score_image([(SQUARE, True)], [quad])
+    detected, errors = study.detect_image([(SQUARE, True)], [quad])
+    assert found == [False] and false == 1
+    assert detected == [True] and np.allclose(errors, 5.0)
+
+
+def test_detected_corners_are_compared_in_the_cyclic_order_that_fits_best():
+    quad = np.roll(SQUARE + [0.0, 6.0], 1, axis=0)
+    detected, errors = study.detect_image([(SQUARE, True)], [quad])
+    assert detected == [True] and np.allclose(errors, 6.0)
+
+
+def test_a_quad_over_half_of_a_cover_or_over_two_detects_neither():
+    half = SQUARE.copy()
+    half[1:3, 0] = 195.0  # 95 of 200 px wide: IoU 0.475
+    other = SQUARE + [200.0, 0.0]
+    both = np.array([[100.0, 100.0], [520.0, 100.0], [520.0, 250.0], [100.0, 250.0]])  # 0.48 each
+    assert study.detect_image([(SQUARE, True)], [half]) == ([False], [])
+    assert study.detect_image([(SQUARE, True), (other, True)], [both]) == ([False, False], [])
+
+
+def test_one_quad_detects_one_cover_the_one_it_overlaps_most():
+    other = SQUARE + [30.0, 0.0]  # two overlapping true covers, one quad between them
+    quad = SQUARE + [10.0, 0.0]
+    detected, errors = study.detect_image([(SQUARE, True), (other, True)], [quad])
+    assert detected == [True, False] and np.allclose(errors, 10.0)
+    # a second quad on the other cover detects it too
+    detected, _ = study.detect_image([(SQUARE, True), (other, True)], [quad, other])
+    assert detected == [True, True]
+
+
+def test_a_cover_not_counted_still_takes_the_quad_that_detects_it():
+    other = SQUARE + [400.0, 0.0]
+    detected, errors = study.detect_image([(SQUARE, True), (other, False)], [other + 1.0])
+    assert detected == [False] and np.allclose(errors, np.sqrt(2.0))
