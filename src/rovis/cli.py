@@ -318,10 +318,11 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
         report = bench_pipeline(n=args.n, size=args.size, method=args.method,
                                 workers=args.workers, protocol=args.protocol, seed=args.seed,
-                                settings=args.set,
+                                settings=args.set, repeats=args.repeats or 1,
                                 progress=lambda text: print(text, file=sys.stderr, flush=True))
         print(report.text())
         return 0
+    args.repeats = args.repeats or 7
     if args.what == "triangulation":
         print(f"triangulation of {args.points:,} points, one core, {args.repeats} runs")
         for timing in bench_triangulation(args.points, repeats=args.repeats):
@@ -496,8 +497,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="pipeline: processes for the all-cores rate (default: all cores)")
     p.add_argument("--points", type=_positive_int, default=1_000_000,
                    help="triangulation: points per run (default: %(default)s)")
-    p.add_argument("--repeats", type=_positive_int, default=7,
-                   help="triangulation, synth: runs (default: %(default)s)")
+    p.add_argument("--repeats", type=_positive_int, default=None,
+                   help="triangulation, synth: runs (default: 7); pipeline: runs of each "
+                        "frame on one core, the fastest kept (default: 1)")
     p.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
                    help="pipeline: change a detector setting for every method timed, e.g. "
                         "--set segment.lsd=true (DetectConfig's fields, nested with dots; "
