@@ -85,35 +85,48 @@ def test_a_quad_5_px_off_is_detected_but_not_found():
     found, _, false = study.score_image([(SQUARE, True)], [quad])
     detected, errors = study.detect_image([(SQUARE, True)], [quad])
     assert found == [False] and false == 1
-    assert detected == [True] and np.allclose(errors, 5.0)
+    assert detected == [True] and errors == pytest.approx([5.0] * 4)
 
 
-def test_detected_corners_are_compared_in_the_cyclic_order_that_fits_best():
-    quad = np.roll(SQUARE + [0.0, 6.0], 1, axis=0)
+@pytest.mark.parametrize("turn", [0, 1, 2, 3])
+@pytest.mark.parametrize("reverse", [False, True])
+def test_detected_corners_are_compared_corner_for_corner_in_any_order(turn, reverse):
+    quad = SQUARE + [0.0, 6.0]
+    quad = np.roll(quad[::-1] if reverse else quad, turn, axis=0)
     detected, errors = study.detect_image([(SQUARE, True)], [quad])
-    assert detected == [True] and np.allclose(errors, 6.0)
+    assert detected == [True] and errors == pytest.approx([6.0] * 4)
 
 
-def test_a_quad_over_half_of_a_cover_or_over_two_detects_neither():
-    half = SQUARE.copy()
-    half[1:3, 0] = 195.0  # 95 of 200 px wide: IoU 0.475
+def test_a_quad_over_just_over_half_of_a_cover_is_detected_and_under_half_is_not():
+    part = SQUARE.copy()
+    part[1:3, 0] = 210.0  # 110 of 200 px wide, three sides shared: IoU 0.55
+    detected, errors = study.detect_image([(SQUARE, True)], [part])
+    assert detected == [True] and len(errors) == 4
+    part[1:3, 0] = 195.0  # 95 px: IoU 0.475
+    assert study.detect_image([(SQUARE, True)], [part]) == ([False], [])
+
+
+def test_a_quad_over_two_covers_detects_neither():
     other = SQUARE + [200.0, 0.0]
     both = np.array([[100.0, 100.0], [520.0, 100.0], [520.0, 250.0], [100.0, 250.0]])  # 0.48 each
-    assert study.detect_image([(SQUARE, True)], [half]) == ([False], [])
     assert study.detect_image([(SQUARE, True), (other, True)], [both]) == ([False, False], [])
 
 
-def test_one_quad_detects_one_cover_the_one_it_overlaps_most():
+@pytest.mark.parametrize("first", [True, False])
+def test_one_quad_detects_one_cover_the_one_it_overlaps_most(first):
     other = SQUARE + [30.0, 0.0]  # two overlapping true covers, one quad between them
-    quad = SQUARE + [10.0, 0.0]
-    detected, errors = study.detect_image([(SQUARE, True), (other, True)], [quad])
-    assert detected == [True, False] and np.allclose(errors, 10.0)
+    quad = SQUARE + [10.0, 0.0]  # IoU 0.91 with SQUARE, 0.82 with other
+    truth = [(SQUARE, True), (other, True)] if first else [(other, True), (SQUARE, True)]
+    detected, errors = study.detect_image(truth, [quad])
+    assert detected == ([True, False] if first else [False, True])
+    assert errors == pytest.approx([10.0] * 4)
     # a second quad on the other cover detects it too
-    detected, _ = study.detect_image([(SQUARE, True), (other, True)], [quad, other])
-    assert detected == [True, True]
+    detected, errors = study.detect_image(truth, [quad, other])
+    assert detected == [True, True] and len(errors) == 8
 
 
-def test_a_cover_not_counted_still_takes_the_quad_that_detects_it():
-    other = SQUARE + [400.0, 0.0]
-    detected, errors = study.detect_image([(SQUARE, True), (other, False)], [other + 1.0])
-    assert detected == [False] and np.allclose(errors, np.sqrt(2.0))
+def test_a_cover_not_counted_still_takes_the_quad_that_overlaps_it_most():
+    other = SQUARE + [30.0, 0.0]
+    quad = SQUARE + [25.0, 0.0]  # IoU 0.78 with SQUARE, 0.94 with the uncounted cover
+    detected, errors = study.detect_image([(SQUARE, True), (other, False)], [quad])
+    assert detected == [False] and errors == pytest.approx([5.0] * 4)
