@@ -439,9 +439,11 @@ def test_bench_pipeline_takes_detector_settings(capsys):
 
 
 def test_time_pipeline_keeps_each_frames_fastest_run(monkeypatch):
+    import dataclasses
     import types
 
     import rovis.bench as bench
+    from rovis.pipeline import Detector
     from rovis.synth.dataset import dataset_rig, dataset_scenes
     from rovis.synth.render import render
 
@@ -451,8 +453,19 @@ def test_time_pipeline_keeps_each_frames_fastest_run(monkeypatch):
     # the bench's clock: the frame's three runs take 5, 2 and 9 s
     ticks = iter([0.0, 5.0, 10.0, 12.0, 20.0, 29.0])
     monkeypatch.setattr(bench, "time", types.SimpleNamespace(perf_counter=lambda: next(ticks)))
+    # each timed run's stages stamped with its number (the warm-up is run 0)
+    calls = []
+    detect = Detector.detect
+
+    def stamped(self, left, right, *args, **kwargs):
+        calls.append(None)
+        res = detect(self, left, right, *args, **kwargs)
+        return dataclasses.replace(res, timing_ms={**res.timing_ms, "split": len(calls) - 1})
+
+    monkeypatch.setattr(Detector, "detect", stamped)
     timing = bench.time_pipeline(rig, [(r.left, r.right)], "open", repeats=3)
     assert timing.total_ms.tolist() == [2000.0]
+    assert timing.stages["split"].tolist() == [2.0]  # the fastest run's stages, not another's
     with pytest.raises(ValueError, match="repeats"):
         bench.time_pipeline(rig, [(r.left, r.right)], "open", repeats=0)
 

@@ -322,10 +322,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                                 progress=lambda text: print(text, file=sys.stderr, flush=True))
         print(report.text())
         return 0
-    args.repeats = args.repeats or 7
+    repeats = args.repeats or 7
     if args.what == "triangulation":
-        print(f"triangulation of {args.points:,} points, one core, {args.repeats} runs")
-        for timing in bench_triangulation(args.points, repeats=args.repeats):
+        print(f"triangulation of {args.points:,} points, one core, {repeats} runs")
+        for timing in bench_triangulation(args.points, repeats=repeats):
             print(timing.line())
         return 0
     if args.what == "synth":
@@ -334,8 +334,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         from rovis.synth.bench import bench_synth
 
         print(f"synthetic scenes: 1024x768 stereo pairs, 2x2 supersampling, one core, "
-              f"{args.repeats} scenes")
-        for t in bench_synth(args.repeats):
+              f"{repeats} scenes")
+        for t in bench_synth(repeats):
             q1, q3 = np.percentile(t.seconds, [25, 75])
             print(f"{t.name:<24} median {t.median * 1e3:9.2f} ms  "
                   f"(IQR {q1 * 1e3:.2f}-{q3 * 1e3:.2f} ms, n={len(t.seconds)})")
