@@ -37,6 +37,7 @@ from rovis.segment import SegmentConfig, gradients
 from rovis.segment.methods import segment
 from rovis.segment.quads import order_corners
 from rovis.synth import render, sample_scene
+from rovis.synth.textures import COVER_KINDS
 
 BANDS = [(15, 50), (50, 150), (150, 500), (500, 1200)]
 METHODS = {"closed-": ("closed", -1), "closed+": ("closed", +1), "open": ("open", -1),
@@ -185,6 +186,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         ap.error(str(e))
     cv2.setNumThreads(1)
     stats: dict[tuple[str, int], dict[str, list]] = defaultdict(lambda: defaultdict(list))
+    # found and detected, per method and cover kind (DESIGN §4), over all bands
+    by_cover: dict[tuple[str, str], dict[str, list]] = defaultdict(lambda: defaultdict(list))
     for i in range(args.n):
         sc = sample_scene(args.seed + i)
         r = render(sc, args.seed + i)  # seeded sensor noise: reproducible
@@ -197,6 +200,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         for b in r.truth["books"]:
             h = np.array(b["corners"]) @ rig.Q_L[:, :3].T + rig.Q_L[:, 3]
             truth.append((order_corners(h[:, :2] / h[:, 2:]), b["visible_left"] >= 0.9))
+        kinds = [b["cover"] for b in r.truth["books"] if b["visible_left"] >= 0.9]
         band = next(k for k, (lo, hi) in enumerate(BANDS) if r.truth["lux"] < hi or k == len(BANDS) - 1)
         for name, (method, _) in methods.items():
             st = stats[(name, band)]
@@ -218,6 +222,9 @@ def main(argv: Sequence[str] | None = None) -> None:
             detected, det_errors = detect_image(truth, quads)
             st["detected"].extend(detected)
             st["det_err"].extend(det_errors)
+            for kind, ok, seen in zip(kinds, found, detected):
+                by_cover[(name, kind)]["found"].append(ok)
+                by_cover[(name, kind)]["detected"].append(seen)
     options = [f"--refine-gamma {args.refine_gamma}"] if args.refine_gamma != 1.0 else []
     options += [f"--set {item}" for item in args.set]
     print(f"{args.n} scenes, seeds {args.seed}-{args.seed + args.n - 1}"
@@ -244,6 +251,18 @@ def main(argv: Sequence[str] | None = None) -> None:
         detected = [ok for band in range(len(BANDS)) for ok in stats[(name, band)]["detected"]]
         print(f"{name}: {sum(found)} of {len(found)} books found over all bands, "
               f"{sum(detected)} detected")
+    print()
+    print("By cover kind, over all bands: books found / detected of those counted")
+    print()
+    print("| method | " + " | ".join(COVER_KINDS) + " |")
+    print("|---|" + "---|" * len(COVER_KINDS))
+    for name in methods:
+        cells = []
+        for kind in COVER_KINDS:
+            st = by_cover.get((name, kind))
+            cells.append(f"{sum(st['found'])} / {sum(st['detected'])} of {len(st['found'])}"
+                         if st else "-")
+        print(f"| {name} | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":

@@ -130,3 +130,18 @@ def test_a_cover_not_counted_still_takes_the_quad_that_overlaps_it_most():
     quad = SQUARE + [25.0, 0.0]  # IoU 0.78 with SQUARE, 0.94 with the uncounted cover
     detected, errors = study.detect_image([(SQUARE, True), (other, False)], [quad])
     assert detected == [False] and errors == pytest.approx([5.0] * 4)
+
+
+def test_the_cover_kind_table_adds_up_to_the_summary(capsys):
+    import re
+
+    study.main(["--n", "2", "--seed", "100", "--methods", "open"])
+    out = capsys.readouterr().out
+    found, n, detected = (int(x) for x in re.search(
+        r"open: (\d+) of (\d+) books found over all bands, (\d+) detected", out).groups())
+    row = [line for line in out.splitlines() if line.startswith("| open |")][-1]  # by kind
+    cells = re.findall(r"(\d+) / (\d+) of (\d+)", row)
+    assert n > 0 and len(cells) >= 2  # two kinds at least in these two scenes
+    assert sum(int(f) for f, _, _ in cells) == found
+    assert sum(int(d) for _, d, _ in cells) == detected
+    assert sum(int(c) for _, _, c in cells) == n
