@@ -195,6 +195,29 @@ def test_errors_and_false_positives_by_how_each_book_was_found():
     assert ev.source_breakdown([old], ["closed"]) == {"closed": {}}
 
 
+def test_books_counted_and_their_errors_by_the_kind_of_their_cover():
+    books, dets = _close_off_and_false()
+    score = score_books(books, dets)  # book 0 found 1 mm off, book 1 2 cm off
+    record = {"books": [{"visible": True, "cover": "printed"}, {"visible": True, "cover": "desk"}],
+              "methods": {"closed": score}}
+    unfound = {"books": [{"visible": True, "cover": "desk"}, {"visible": True}],  # (no kind)
+               "methods": {"closed": score_books(books, [])}}
+    by = ev.cover_breakdown([record, record, unfound], ["closed"])["closed"]
+    assert list(by) == ["desk", "printed"]  # the most books first
+    desk, printed = by["desk"], by["printed"]
+    assert (desk["books"], desk["found"], desk["within_1cm"]) == (3, 2, 0)
+    assert (printed["books"], printed["found"], printed["within_1cm"]) == (2, 2, 2)
+    assert desk["errors"]["x"]["mean"] == pytest.approx(0.02)
+    assert printed["errors"]["x"]["mean"] == pytest.approx(0.001)
+    text = ev.cover_table({"closed": by})
+    desk_row = next(line for line in text.splitlines() if "desk" in line).split()
+    k = desk_row.index("desk")  # (the method's first row names it too)
+    assert desk_row[k + 1:k + 5] == ["3", "2", "0", "20.0"]  # books, found, within, |X_e| mm
+    # truth without kinds (real data, an older results.json): nothing to say
+    plain = {"books": [{"visible": True}] * 2, "methods": {"closed": score}}
+    assert ev.cover_breakdown([plain], ["closed"]) == {"closed": {}}
+
+
 def test_detections_counted_by_how_well_they_agree_with_the_images():
     books, dets = _close_off_and_false()
     score = {**score_books(books, dets), "quality": [1.0, 0.85, 0.95],
@@ -253,6 +276,7 @@ def test_eval_cli_with_one_and_two_workers_gives_identical_results(dataset, seri
         captured = capsys.readouterr()
         assert "Max error" in captured.out and "paper Table I" in captured.out
         assert "agrees with the images" in captured.out
+        assert "By the true book's cover" in captured.out
         assert "Median" in captured.out and "found furthest off" in captured.out
         assert "0 scenes skipped" in captured.out
         assert "2/2 scenes" in captured.err
@@ -266,6 +290,14 @@ def test_eval_cli_with_one_and_two_workers_gives_identical_results(dataset, seri
     assert _without_timing(a["scenes"]) == _without_timing(serial.to_dict()["scenes"])
     assert set(a["summary"]) == set(METHODS)
     assert list(a["breakdown"]["lux"]) == ["500-1200 lx"]
+    # every true book's cover kind, as truth.json has it, and the breakdown by it
+    kinds = [b["cover"] for scene in a["scenes"] for b in scene["books"]]
+    truth_kinds = [b["cover"] for scene in sorted((dataset / "scenes").iterdir())
+                   for b in json.loads((scene / "truth.json").read_text())["books"]]
+    assert kinds == truth_kinds
+    closed_kinds = a["breakdown"]["cover"]["closed"]
+    assert sum(c["books"] for c in closed_kinds.values()) == len(kinds)
+    assert sum(c["found"] for c in closed_kinds.values()) == a["summary"]["closed"]["found"]
     for scene in a["scenes"]:
         assert set(scene["methods"]) == set(METHODS)
         assert len(scene["books"]) == len(scene["methods"]["closed"]["found"])

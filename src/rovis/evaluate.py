@@ -266,8 +266,20 @@ def _scene_info(doc: dict[str, Any], truth: Sequence[Book], up: NDArray[np.float
         "exposure": doc.get("exposure") if isinstance(doc.get("exposure"), str) else None,
         "books": [{"id": b.id, "center": [float(v) for v in b.center],
                    "yaw_deg": long_axis_heading_deg(b.R, b.size, up),
-                   "size": [float(v) for v in b.size], "visible": b.visible} for b in truth],
+                   "size": [float(v) for v in b.size], "visible": b.visible,
+                   **_cover_of(doc, k)} for k, b in enumerate(truth)],
     }
+
+
+def _cover_of(doc: dict[str, Any], k: int) -> dict[str, str]:
+    """``{"cover": kind}``, the cover kind (DESIGN §4) ``truth.json`` gives its ``k``-th
+    book, or nothing where it gives none."""
+    books = doc.get("books")
+    if isinstance(books, list) and k < len(books) and isinstance(books[k], dict):
+        kind = books[k].get("cover")
+        if isinstance(kind, str):
+            return {"cover": kind}
+    return {}
 
 
 def _up(doc: dict[str, Any]) -> NDArray[np.float64]:
@@ -447,7 +459,8 @@ class Evaluation:
                 "n_scenes": len(self.scenes), "n_skipped": len(self.skipped),
                 "summary": self.summary(),
                 "breakdown": {**breakdown(self.scenes, self.methods),
-                              "source": source_breakdown(self.scenes, self.methods)},
+                              "source": source_breakdown(self.scenes, self.methods),
+                              "cover": cover_breakdown(self.scenes, self.methods)},
                 "skipped": list(self.skipped), "scenes": list(self.scenes)}
 
     @classmethod
@@ -734,6 +747,41 @@ def source_breakdown(records: Sequence[Mapping[str, Any]], methods: Sequence[str
     return out
 
 
+def cover_breakdown(records: Sequence[Mapping[str, Any]], methods: Sequence[str]) -> dict[str, Any]:
+    """Per method and per cover kind of the true books (``cover`` in ``truth.json``: plain,
+    dark, light, desk, printed, photo; DESIGN §4): ``books``, ``found`` (matched),
+    ``within_1cm`` (matched within the grasp tolerance on every axis of X, Y, Z) and the
+    ``errors`` of the matched ones (as :func:`summarize_method`). Books whose truth names
+    no kind (real data, an older results.json) count nothing. Where a method's books are
+    lost or misplaced, by what their covers look like."""
+    out: dict[str, Any] = {}
+    for method in methods:
+        groups: dict[str, dict[str, Any]] = {}
+        for rec in records:
+            score = rec["methods"].get(method)
+            if score is None:
+                continue
+            matched = {m["truth"]: m for m in score["matches"]}
+            for t, book in enumerate(rec.get("books", [])):
+                kind = book.get("cover")
+                if not isinstance(kind, str):
+                    continue
+                g = groups.setdefault(kind, {"books": 0, "found": 0, "within_1cm": 0,
+                                             "errs": {k: [] for k in ERROR_KEYS}})
+                g["books"] += 1
+                if t in matched:
+                    g["found"] += 1
+                    e = matched[t]["errors"]
+                    g["within_1cm"] += max(abs(e[c]) for c in ("x", "y", "z")) <= GRASP_TOLERANCE_M
+                    for k in ERROR_KEYS:
+                        g["errs"][k].append(e[k])
+        out[method] = {kind: {"books": g["books"], "found": g["found"],
+                              "within_1cm": g["within_1cm"],
+                              "errors": {k: _stats(v) for k, v in g["errs"].items()}}
+                       for kind, g in sorted(groups.items(), key=lambda kv: -kv[1]["books"])}
+    return out
+
+
 def furthest_books(records: Sequence[Mapping[str, Any]], method: str,
                    n: int = 10) -> list[dict[str, Any]]:
     """The ``n`` matched books ``method`` found furthest off along their worst axis of X, Y,
@@ -916,6 +964,27 @@ def source_table(sources: Mapping[str, Mapping[str, Mapping[str, Any]]]) -> str:
     return "\n".join(rows)
 
 
+def cover_table(covers: Mapping[str, Mapping[str, Mapping[str, Any]]]) -> str:
+    """True books, found, within 1 cm and mean absolute errors (mm, °) per method and cover
+    kind (:func:`cover_breakdown`)."""
+    rows = [f"{'method':<14}{'cover':<10}{'books':>6}{'found':>6}{'within 1 cm':>12}"
+            f"{'|X_e| mm':>9}{'|Y_e| mm':>9}{'|Z_e| mm':>9}{'|Ψ_e| °':>8}"
+            f"{'|len| mm':>9}{'|wid| mm':>9}"]
+
+    def mm(v: float | None) -> float | None:
+        return None if v is None else 1000.0 * v
+
+    for method, per_kind in covers.items():
+        for k, (kind, c) in enumerate(per_kind.items()):
+            e = c["errors"]
+            rows.append(f"{method if k == 0 else '':<14}{kind:<10}{c['books']:>6}"
+                        f"{c['found']:>6}{c['within_1cm']:>12}"
+                        + "".join(_num(mm(e[a]["mean"]), 9, 1) for a in ("x", "y", "z"))
+                        + _num(e["psi_deg"]["mean"], 8, 2)
+                        + "".join(_num(mm(e[a]["mean"]), 9, 1) for a in ("length", "width")))
+    return "\n".join(rows)
+
+
 def agreement_table(agreement: Mapping[str, Mapping[str, Mapping[str, Mapping[str, int]]]],
                     ) -> str:
     """Detections within and beyond the grasp tolerance, and false positives, per method,
@@ -956,9 +1025,9 @@ def furthest_table(rows: Sequence[Mapping[str, Any]]) -> str:
 def report(ev: Evaluation) -> str:
     """The text ``rovis eval`` prints: per method the Tables I/II block, a summary of all
     methods, and the breakdowns by light level, light and exposure (means, and the largest
-    position errors in metres), by how each detection was found and by how well it agrees
-    with the images; last, the first method's ten books furthest off
-    (:func:`furthest_books`)."""
+    position errors in metres), by how each detection was found, by the true books' cover
+    kind and by how well each detection agrees with the images; last, the first method's
+    ten books furthest off (:func:`furthest_books`)."""
     summary = ev.summary()
     parts = [method_table(m, summary[m], paper_reference(m, ev.protocol)) for m in ev.methods]
     if ev.settings:
@@ -973,6 +1042,10 @@ def report(ev: Evaluation) -> str:
     if any(sources.values()):
         parts.append("By how each detection was found (>1 cm: matched books beyond the grasp "
                      "tolerance on some axis):\n" + source_table(sources))
+    covers = cover_breakdown(ev.scenes, ev.methods)
+    if any(covers.values()):
+        parts.append("By the true book's cover (truth.json's kind; mean absolute errors of the "
+                     "matched books):\n" + cover_table(covers))
     agreement = agreement_breakdown(ev.scenes, ev.methods)
     if any(agreement.values()):
         parts.append("By how well each detection agrees with the images (its quality and "
