@@ -197,22 +197,31 @@ def test_errors_and_false_positives_by_how_each_book_was_found():
 
 def test_books_counted_and_their_errors_by_the_kind_of_their_cover():
     books, dets = _close_off_and_false()
-    score = score_books(books, dets)  # book 0 found 1 mm off, book 1 2 cm off
-    record = {"books": [{"visible": True, "cover": "printed"}, {"visible": True, "cover": "desk"}],
+    # book 0 found 1 mm off by detection 2, book 1 2 cm off by detection 1 (detection and
+    # truth indices differ: the breakdown goes by the truth's)
+    score = score_books(books, [dets[2], dets[1], dets[0]])
+    record = {"books": [{"visible": True, "cover": "desk"}, {"visible": True, "cover": "printed"}],
               "methods": {"closed": score}}
-    unfound = {"books": [{"visible": True, "cover": "desk"}, {"visible": True}],  # (no kind)
+    unfound = {"books": [{"visible": True, "cover": "printed"}, {"visible": True}],  # (no kind)
                "methods": {"closed": score_books(books, [])}}
     by = ev.cover_breakdown([record, record, unfound], ["closed"])["closed"]
-    assert list(by) == ["desk", "printed"]  # the most books first
+    assert list(by) == ["printed", "desk"]  # the most books first
     desk, printed = by["desk"], by["printed"]
-    assert (desk["books"], desk["found"], desk["within_1cm"]) == (3, 2, 0)
-    assert (printed["books"], printed["found"], printed["within_1cm"]) == (2, 2, 2)
-    assert desk["errors"]["x"]["mean"] == pytest.approx(0.02)
-    assert printed["errors"]["x"]["mean"] == pytest.approx(0.001)
-    text = ev.cover_table({"closed": by})
-    desk_row = next(line for line in text.splitlines() if "desk" in line).split()
-    k = desk_row.index("desk")  # (the method's first row names it too)
-    assert desk_row[k + 1:k + 5] == ["3", "2", "0", "20.0"]  # books, found, within, |X_e| mm
+    assert (desk["books"], desk["found"], desk["within_1cm"]) == (2, 2, 2)
+    assert (printed["books"], printed["found"], printed["within_1cm"]) == (3, 2, 0)
+    assert desk["errors"]["x"]["mean"] == pytest.approx(0.001)
+    assert printed["errors"]["x"]["mean"] == pytest.approx(0.02)
+    # a book exactly 1 cm off is within the grasp tolerance, as in summarize_method; errors
+    # are shown in millimetres and degrees
+    edge = {"books": [{"visible": True, "cover": "light"}],
+            "methods": {"closed": {"matches": [{"truth": 0, "detection": 0, "errors": {
+                "x": 0.01, "y": -0.002, "z": 0.003, "psi_deg": 1.5, "length": 0.004,
+                "width": -0.005, "height": None}}]}}}
+    light = ev.cover_breakdown([edge], ["closed"])["closed"]["light"]
+    assert (light["books"], light["found"], light["within_1cm"]) == (1, 1, 1)
+    text = ev.cover_table({"closed": {**by, "light": light}})
+    row = next(line for line in text.splitlines() if "light" in line).split()
+    assert row[1:] == ["1", "1", "1", "10.0", "2.0", "3.0", "1.50", "4.0", "5.0"]
     # truth without kinds (real data, an older results.json): nothing to say
     plain = {"books": [{"visible": True}] * 2, "methods": {"closed": score}}
     assert ev.cover_breakdown([plain], ["closed"]) == {"closed": {}}
@@ -298,6 +307,8 @@ def test_eval_cli_with_one_and_two_workers_gives_identical_results(dataset, seri
     closed_kinds = a["breakdown"]["cover"]["closed"]
     assert sum(c["books"] for c in closed_kinds.values()) == len(kinds)
     assert sum(c["found"] for c in closed_kinds.values()) == a["summary"]["closed"]["found"]
+    assert (sum(c["within_1cm"] for c in closed_kinds.values())
+            == a["summary"]["closed"]["within_1cm"])
     for scene in a["scenes"]:
         assert set(scene["methods"]) == set(METHODS)
         assert len(scene["books"]) == len(scene["methods"]["closed"]["found"])
