@@ -53,6 +53,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("the grow by the print", ["trim.print_grow=false"]),
     ("a refused grow asked again", ["trim.grow_tries=1"]),
     ("the maps cut again without the found covers", ["heightmap.taken_px=-1"]),
+    ("the smooth map cut again in wide slabs", ["heightmap.wide_slab=0"]),
     ("a height-map book's print kept from the extent's cut", ["extent.keep_print=false"]),
     ("a split the maps read at one height refused", ["split.map_check=false"]),
     ("a height-map book over a segmented one cut back", ["stereo.over_cut=false"]),

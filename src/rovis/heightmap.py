@@ -70,6 +70,13 @@ class HeightMapConfig:
     two image pixels each), for a book whose patch ran on over a found one of about its
     height (negative: not cut again); a cover so found is not taken where it lies over a
     found one by more than ``taken_overlap`` of the smaller quad in either image.
+    ``wide_slab``: then the smooth map is cut once more so, in slabs this wide (± metres;
+    0: not), each wholly above ``raised``, for a cover whose heights the map reads spread
+    wider than ``slab``, so that each thin slab holds a broken patch of it. A cover so
+    found is taken only where its print answers the fine sweep of its height
+    (:func:`rovis.sweep.sweep_heights`) with an NCC of ``wide_min_ncc`` or more: one whose
+    print does not (a cover of the desk's tone, its mottle read ± 7 mm) is laid at the
+    slab's height and its faint sides' edges, centimetres off.
     """
 
     enabled: bool = True
@@ -102,6 +109,8 @@ class HeightMapConfig:
     dense_snap_read: float = 0.5
     taken_px: int = 4
     taken_overlap: float = 0.15
+    wide_slab: float = 0.010
+    wide_min_ncc: float = 0.85
 
     def __post_init__(self) -> None:
         if not (0 < self.step and self.max_height > self.min_height + self.step
@@ -112,14 +121,16 @@ class HeightMapConfig:
                 and self.dense_slab > 0 and self.dense_erode_px >= 0
                 and 0.0 <= self.dense_max_desk <= 1.0 and 0.0 <= self.dense_min_read <= 1.0
                 and self.dense_snap_tol > 0 and 0.0 < self.dense_snap_read <= 1.0
-                and 0.0 <= self.taken_overlap <= 1.0 and isinstance(self.taken_px, int)):
+                and 0.0 <= self.taken_overlap <= 1.0 and isinstance(self.taken_px, int)
+                and self.wide_slab >= 0 and -1.0 <= self.wide_min_ncc <= 1.0):
             raise ValueError("heightmap: step and slab must be positive, max_height above "
                              "min_height by more than a step, window_px and "
                              "smooth_window_px odd and >= 3, smooth_sigma_px positive, "
                              "smooth_erode_px >= 0, dense_block_px odd and >= 3, "
                              "dense_slab positive, dense_erode_px >= 0, dense_max_desk, "
                              "dense_min_read and taken_overlap in [0, 1], dense_snap_tol "
-                             f"positive, dense_snap_read in (0, 1], taken_px an int, got {self}")
+                             "positive, dense_snap_read in (0, 1], taken_px an int, "
+                             f"wide_slab >= 0, wide_min_ncc in [-1, 1], got {self}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -524,6 +535,7 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
                   side_range: tuple[float, float] = (0.05, 0.45),
                   cfg: HeightMapConfig = HeightMapConfig(), erode_px: int = 0,
                   exclude: NDArray[np.bool_] | None = None,
+                  above: float | None = None,
                   ) -> list[tuple[NDArray[np.float64], float, float]]:
     """Cover candidates: rectangles fitted to patches of one height above the desk.
 
@@ -537,6 +549,8 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
     ``erode_px`` > 0 shrinks each slab's joined patches by that many pixels first (a wide
     NCC window's patch reaches past the cover's edge by about half the window).
     ``exclude``, if given (bool, the map's shape), marks pixels left out of every slab.
+    ``above``, if given: a slab reaching below this height (h − ``cfg.slab``, metres) is
+    not cut (a wide slab's patch there takes in the desk).
 
     Returns
     -------
@@ -562,7 +576,10 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
     at_valid = np.flatnonzero(valid)
     valid_height = height.ravel()[at_valid]
     width = height.shape[1]
-    for h in hm.heights[(hm.heights >= cfg.raised) & (hm.heights < hm.heights[-1] - 0.5 * cfg.step)]:
+    cut = (hm.heights >= cfg.raised) & (hm.heights < hm.heights[-1] - 0.5 * cfg.step)
+    if above is not None:
+        cut &= hm.heights - cfg.slab >= above
+    for h in hm.heights[cut]:
         bounds = _slab_bounds(float(h), cfg.slab) if height.dtype == np.float32 else None
         if bounds is None:
             at = at_valid[np.abs(valid_height.astype(np.float64) - h) <= cfg.slab]

@@ -589,6 +589,18 @@ class Detector:
             # pixels, once the steps above have grown each found cover to its edges
             more = self._from_height_map(rig, grads, found, desk_plane, texture, maps,
                                          without_found=True)
+            if self.cfg.heightmap.wide_slab > 0 and len(maps) > 1:
+                # ...and the smooth map in wide slabs: a cover whose heights it reads
+                # spread wider than one slab. Cut without the covers found before only: a
+                # piece of a cover just found, cut off from it, would be a book of its own
+                smooth, Q_half, half, erode = maps[1]
+                wide = replace(half, slab=self.cfg.heightmap.wide_slab)
+                overlap = self.cfg.stereo.transfer_max_overlap
+                more += [(pair, book) for pair, book in self._from_height_map(
+                    rig, grads, found, desk_plane, texture, [(smooth, Q_half, wide, erode)],
+                    without_found=True, above=half.raised,
+                    min_ncc=self.cfg.heightmap.wide_min_ncc)
+                    if not _over_any_of(pair, more, overlap)]
             lap("heightmap")
             if more:
                 # each new book through the extent step, kept where it still lies over no
@@ -2040,6 +2052,7 @@ class Detector:
                          refuse: Callable[[NDArray[np.float64]], bool] | None = None,
                          without_found: bool = False,
                          strip_maps: Sequence[tuple[HeightMap, NDArray[np.float64]]] = (),
+                         above: float | None = None, min_ncc: float | None = None,
                          ) -> list[tuple[Pair, BookDetection]]:
         """Books where no book is yet, from the covers that stand out of the desk in a
         height map of the workspace (:mod:`rovis.heightmap`); ``refuse``, if given, turns
@@ -2049,7 +2062,10 @@ class Detector:
         the snapped one fails, and a book over a found one (``taken_overlap``) not taken;
         ``strip_maps``: other maps (with their projections) that bound each side's snap
         outward where they read a strip beyond it well below the cover
-        (``HeightMapConfig.dense_snap_tol``, :func:`rovis.heightmap.snap_sides`).
+        (``HeightMapConfig.dense_snap_tol``, :func:`rovis.heightmap.snap_sides`);
+        ``above``, if given: no slab reaching below this height is cut (:func:`raised_covers`);
+        ``min_ncc``, if given: a rectangle is taken only where its print answers the fine
+        sweep of its height with an NCC this high.
 
         Each rectangle's height is refined by its print (a fine sweep), its sides are moved
         onto the edges both images show (:func:`rovis.heightmap.snap_sides`), and the
@@ -2065,7 +2081,7 @@ class Detector:
                  for rect in raised_covers(
                      hm, Q_map, desk_plane, side_range=side_range, cfg=map_cfg, erode_px=erode,
                      exclude=(_footprints(hm, Q_map, found, cfg.heightmap.taken_px)
-                              if without_found else None))]
+                              if without_found else None), above=above)]
         taken = {"left": [p.left for p, _ in found], "right": [p.right for p, _ in found]}
         out: list[tuple[Pair, BookDetection]] = []
 
@@ -2094,6 +2110,8 @@ class Detector:
             sweep = sweep_heights(texture["left"], texture["right"], rig.Q_L, rig.Q_R, left,
                                   desk_plane, near[near > 0], inset=cfg.sweep.inset,
                                   max_samples=cfg.sweep.max_samples)
+            if min_ncc is not None and (sweep is None or sweep.best_ncc < min_ncc):
+                continue
             if sweep is not None:
                 height = sweep.best_height
                 P = on_plane(rig.Q_L, left, desk_plane, height)
