@@ -121,8 +121,9 @@ def _stub_outline_pair(book, monkeypatch) -> list[str]:
         return segs[calls[-1]]
 
     monkeypatch.setattr(pipeline, "segment", fake_segment)
+    # (the smooth map's wide slabs off too: they find this book on their own)
     return ["stereo.transfer=false", "extent.grow=false", "extent.shrink=false",
-            "full_view=false"]
+            "full_view=false", "heightmap.wide_slab=0"]
 
 
 def test_detect_retries_a_tilted_pair_and_finds_the_book_only_with_alternatives(book, monkeypatch):
@@ -220,7 +221,8 @@ def test_a_quad_seen_in_one_image_only_is_looked_for_through_its_alternatives(bo
         return segs[calls[-1]]
 
     monkeypatch.setattr(pipeline, "segment", fake_segment)
-    off = ["extent.grow=false", "extent.shrink=false", "full_view=false"]  # the stub's pixels
+    off = ["extent.grow=false", "extent.shrink=false", "full_view=false",  # the stub's pixels
+           "heightmap.wide_slab=0"]  # the smooth map's wide slabs find this book on their own
     on = Detector(rig, with_settings(DetectConfig(), off)).detect(raw_left, raw_right)
     without = Detector(rig, with_settings(DetectConfig(), off + ["stereo.transfer_alternatives=0"])
                        ).detect(raw_left, raw_right)

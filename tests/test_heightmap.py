@@ -359,6 +359,7 @@ def test_a_cover_read_at_spread_heights_is_one_rectangle_in_a_wide_slab():
     wide = HeightMapConfig(slab=0.010)
     (corners, h, fill), = raised_covers(hm, Q, desk, cfg=wide)
     assert 0.034 <= h <= 0.040 and fill > 0.9  # every band in the slab, the outline whole
+
     def sides_of(corners: np.ndarray) -> np.ndarray:
         return np.sort(np.linalg.norm(corners - np.roll(corners, -1, axis=0), axis=1))[::2]
 

@@ -70,13 +70,16 @@ class HeightMapConfig:
     two image pixels each), for a book whose patch ran on over a found one of about its
     height (negative: not cut again); a cover so found is not taken where it lies over a
     found one by more than ``taken_overlap`` of the smaller quad in either image.
-    ``wide_slab``: then the smooth map is cut once more so, in slabs this wide (± metres;
-    0: not), each wholly above ``raised``, for a cover whose heights the map reads spread
-    wider than ``slab``, so that each thin slab holds a broken patch of it. A cover so
-    found is taken only where its print answers the fine sweep of its height
-    (:func:`rovis.sweep.sweep_heights`) with an NCC of ``wide_min_ncc`` or more: one whose
-    print does not (a cover of the desk's tone, its mottle read ± 7 mm) is laid at the
-    slab's height and its faint sides' edges, centimetres off.
+    ``wide_slab``: then (where ``taken_px`` >= 0 and ``smooth`` is on) the smooth map is
+    cut once more so, without the pixels of the covers found before, in slabs this wide
+    (± metres; 0: not), each wholly above ``raised``, for a cover whose heights the map
+    reads spread wider than ``slab``, so that each thin slab holds a broken patch of it.
+    A cover so found is taken only where its print answers the fine sweep within ``step``
+    of its slab's height (:func:`rovis.sweep.sweep_heights`) with an NCC of
+    ``wide_min_ncc`` or more (-1: any print): one whose print does not (a cover of the
+    desk's tone, its mottle read ± 7 mm) is laid at the slab's height and its faint sides'
+    edges, centimetres off. Nor is one taken over a book the thin slabs' cut again found
+    (by more than ``StereoConfig.transfer_max_overlap`` of the smaller quad).
     """
 
     enabled: bool = True
@@ -578,7 +581,7 @@ def raised_covers(hm: HeightMap, Q_L: ArrayLike, desk_plane: ArrayLike, *,
     width = height.shape[1]
     cut = (hm.heights >= cfg.raised) & (hm.heights < hm.heights[-1] - 0.5 * cfg.step)
     if above is not None:
-        cut &= hm.heights - cfg.slab >= above
+        cut &= hm.heights - cfg.slab >= above - 1e-9  # (a swept height's rounding)
     for h in hm.heights[cut]:
         bounds = _slab_bounds(float(h), cfg.slab) if height.dtype == np.float32 else None
         if bounds is None:

@@ -593,6 +593,9 @@ class Detector:
                 # ...and the smooth map in wide slabs: a cover whose heights it reads
                 # spread wider than one slab. Cut without the covers found before only: a
                 # piece of a cover just found, cut off from it, would be a book of its own
+                # (the Table II renders' brick cover). A book over one just found is not
+                # taken (by the rule a rectangle over a found quad is turned down with): in
+                # the extent step beside it, it would move that book (build/t2b scene 54)
                 smooth, Q_half, half, erode = maps[1]
                 wide = replace(half, slab=self.cfg.heightmap.wide_slab)
                 overlap = self.cfg.stereo.transfer_max_overlap
@@ -2063,9 +2066,10 @@ class Detector:
         ``strip_maps``: other maps (with their projections) that bound each side's snap
         outward where they read a strip beyond it well below the cover
         (``HeightMapConfig.dense_snap_tol``, :func:`rovis.heightmap.snap_sides`);
-        ``above``, if given: no slab reaching below this height is cut (:func:`raised_covers`);
-        ``min_ncc``, if given: a rectangle is taken only where its print answers the fine
-        sweep of its height with an NCC this high.
+        ``above``, if given: no slab reaching below this height is cut
+        (:func:`rovis.heightmap.raised_covers`); ``min_ncc``, if given: a rectangle is taken
+        only where its print answers the fine sweep within ``HeightMapConfig.step`` of its
+        slab's height with an NCC this high.
 
         Each rectangle's height is refined by its print (a fine sweep), its sides are moved
         onto the edges both images show (:func:`rovis.heightmap.snap_sides`), and the
