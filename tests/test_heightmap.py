@@ -378,8 +378,8 @@ def test_a_cover_read_at_spread_heights_is_one_rectangle_in_a_wide_slab():
 
 def test_the_wide_slabs_find_a_book_the_thin_ones_break_and_need_its_print():
     # `rovis synth build/t2b --protocol table2 --n 128 --seed 2`, scene 119: a printed
-    # cover 22 x 12 cm, 22 mm high, that no slab of the maps cut (its smooth-map patch is
-    # read at 18-30 mm); the wide slabs find it, its print agreeing (NCC 0.97)
+    # cover 22 x 12 cm, 22 mm high, lost without the wide slabs; they cut it at 24 mm and
+    # its print agrees (NCC 0.97 in the fine sweep there)
     sc, r = dataset_scene("table2", 2, 119)
     book = np.array(r.truth["books"][1]["center"])
 
