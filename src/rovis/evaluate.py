@@ -614,6 +614,12 @@ def _run_dask(address: str, paths: list[str], calib: str, methods: tuple[str, ..
 # --------------------------------------------------------------------------- statistics
 
 
+def _within_grasp(errors: Mapping[str, float]) -> bool:
+    """Whether a matched book's errors (metres) lie within the grasp tolerance on every
+    axis of X, Y, Z (exactly 1 cm off counts as within)."""
+    return max(abs(errors[c]) for c in ("x", "y", "z")) <= GRASP_TOLERANCE_M
+
+
 def _stats(values: Sequence[float]) -> dict[str, float | None]:
     """max, mean and std (population) of the absolute values, as the paper's tables give
     them, and their median and 95th percentile (linear interpolation): a few books found
@@ -660,7 +666,7 @@ def summarize_method(records: Iterable[Mapping[str, Any]], method: str) -> dict[
         for m in score["matches"]:
             for k in ERROR_KEYS:
                 errs[k].append(m["errors"][k])
-            within += max(abs(m["errors"][c]) for c in ("x", "y", "z")) <= GRASP_TOLERANCE_M
+            within += _within_grasp(m["errors"])
     return {"images": images, "books": books, "found": found, "within_1cm": within,
             "recall": found / books if books else None,
             "visible_books": vis_books, "visible_found": vis_found,
@@ -736,7 +742,7 @@ def source_breakdown(records: Sequence[Mapping[str, Any]], methods: Sequence[str
                 if j in matched:
                     g["matched"] += 1
                     e = matched[j]["errors"]
-                    g["over_1cm"] += max(abs(e[c]) for c in ("x", "y", "z")) > GRASP_TOLERANCE_M
+                    g["over_1cm"] += not _within_grasp(e)
                     for k in ERROR_KEYS:
                         g["errs"][k].append(e[k])
         out[method] = {src: {"detections": g["detections"], "matched": g["matched"],
@@ -772,7 +778,7 @@ def cover_breakdown(records: Sequence[Mapping[str, Any]], methods: Sequence[str]
                 if t in matched:
                     g["found"] += 1
                     e = matched[t]["errors"]
-                    g["within_1cm"] += max(abs(e[c]) for c in ("x", "y", "z")) <= GRASP_TOLERANCE_M
+                    g["within_1cm"] += _within_grasp(e)
                     for k in ERROR_KEYS:
                         g["errs"][k].append(e[k])
         out[method] = {kind: {"books": g["books"], "found": g["found"],
@@ -843,8 +849,7 @@ def agreement_breakdown(records: Sequence[Mapping[str, Any]],
                     band["detections"] += 1
                     if j not in matched:
                         band["false_positives"] += 1
-                    elif max(abs(matched[j]["errors"][c]) for c in ("x", "y", "z")) \
-                            <= GRASP_TOLERANCE_M:
+                    elif _within_grasp(matched[j]["errors"]):
                         band["within_1cm"] += 1
                     else:
                         band["over_1cm"] += 1
