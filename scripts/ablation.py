@@ -64,6 +64,7 @@ STEPS: list[tuple[str, list[str]]] = [
     ("two books the maps read at two heights split", ["split.by_map=false"]),
     ("the late pool looked for in the other image", ["stereo.pool_transfer_late=false"]),
     ("a transferred cover laid on its sides from end to end", ["stereo.pool_transfer_fit=false"]),
+    ("a transferred cover's own unseen end excused, last", ["stereo.pool_transfer_excuse=false"]),
     ("a piece of a grown cover taken in", ["trim.grow_absorb=0"]),
     ("the pool looked at again under a cover dropped at the end", ["stereo.pool_freed=false"]),
     ("the desk between books dropped (a side unseen)", ["stereo.desk_unseen=0"]),

@@ -141,6 +141,11 @@ class StereoConfig:
     # so may the other image show a side along the epipolar lines short as well
     # (find_in_other_view's along_short)
     pool_transfer_fit: bool = True
+    # ...and where that fit misses its own image's unseen side (placed where its
+    # neighbours' edges end, a few pixels off at a seam) and the pair as it is makes no
+    # book, the same fit with that side excused from the check (pipeline._transferred_fit's
+    # excuse_own): Table II's plain book beside a taller one of its tone, end to end
+    pool_transfer_excuse: bool = True
     # Where a quarter or more of a cover found before the extent step lies under no cover
     # after it (a pool pair that was two touching books, cut back to one), the pool is
     # looked at again: the other book's pair had given way to the union
