@@ -144,7 +144,6 @@ def _blinded(grad, quad, sides):
     """``grad`` with no gradient along the middle 70 % of the given sides of ``quad``
     (4, 2), 7 px wide: sides that show no edge."""
     import cv2
-    from dataclasses import replace
     mask = np.zeros(grad.shape, np.uint8)
     for s in sides:
         a, c = quad[s], quad[(s + 1) % 4]
@@ -543,11 +542,19 @@ def test_the_transferred_fit_may_excuse_its_own_images_unseen_side(scene):
     # the one-image search closes a candidate's unseen side where the edges of the two
     # sides beside it end: at a seam (Table II's plain books end to end) it is a few pixels
     # off and askew, and no rectangle lies on it. The strict fit turns the cover down; with
-    # excuse_own that side is still fitted to but may be missed, and the cover's height
-    # and corners come out as they would without the skew
+    # excuse_px that side is still fitted to but may be missed by up to that many pixels,
+    # and the cover comes out at its height, its corners a few millimetres off
     from rovis.pipeline import _transferred_fit
     sc, r = scene
     rig, plane = sc.rig, np.asarray(r.truth["desk_plane"], dtype=np.float64)
+
+    def askew(quad, s):
+        # quad with the corner that starts side s 4 px on along the side before it
+        out = quad.copy()
+        along = out[s] - out[s - 1]
+        out[s] += 4.0 * along / np.linalg.norm(along)
+        return out
+
     tried = 0
     for b in r.truth["books"]:
         P = np.array(b["corners"])
@@ -556,23 +563,26 @@ def test_the_transferred_fit_may_excuse_its_own_images_unseen_side(scene):
         unseen = int(np.argmax(sine))
         if sine[(unseen + 2) % 4] < 0.8:
             continue
-        left = _sides_moved(src, {(unseen + 2) % 4: 2.0})
-        # one corner of the unseen side 4 px on along the long side into it: askew
-        along = left[unseen] - left[unseen - 1]
-        left[unseen] += 4.0 * along / np.linalg.norm(along)
-        pair = Pair(left, _sides_moved(dst, {unseen: 6.0}), 1.0, 0.0, transferred="left")
+        end = (unseen + 2) % 4
+        pair = Pair(askew(_sides_moved(src, {end: 2.0}), unseen),
+                    _sides_moved(dst, {unseen: 6.0}), 1.0, 0.0, transferred="left")
         assert _transferred_fit(rig, pair, "right", unseen, plane, 1.0) is None
-        got = _transferred_fit(rig, pair, "right", unseen, plane, 1.0, excuse_own=True)
+        got = _transferred_fit(rig, pair, "right", unseen, plane, 1.0, excuse_px=5.0)
         assert got is not None
         assert abs(float(np.mean(got[:, 2])) - b["size"][2]) < 0.0015  # m
         assert np.abs(got - P)[:, :2].max() < 0.006  # m
+        # missed by more than it is excused: no cover
+        assert _transferred_fit(rig, pair, "right", unseen, plane, 1.0, excuse_px=1.0) is None
         # a side the fit must lie on, askew, is not excused: the other end
-        other = _sides_moved(src, {(unseen + 2) % 4: 2.0})
-        end = (unseen + 2) % 4
-        along = other[end] - other[end - 1]
-        other[end] += 4.0 * along / np.linalg.norm(along)
-        assert _transferred_fit(rig, replace(pair, left=other), "right", unseen, plane, 1.0,
-                                excuse_own=True) is None
+        other = replace(pair, left=askew(_sides_moved(src, {end: 2.0}), end))
+        assert _transferred_fit(rig, other, "right", unseen, plane, 1.0, excuse_px=5.0) is None
+        # found in the right image instead, looked for in the left: the same
+        swapped = Pair(_sides_moved(src, {unseen: 6.0}), askew(_sides_moved(dst, {end: 2.0}),
+                                                               unseen),
+                       1.0, 0.0, transferred="right")
+        assert _transferred_fit(rig, swapped, "left", unseen, plane, 1.0) is None
+        got = _transferred_fit(rig, swapped, "left", unseen, plane, 1.0, excuse_px=5.0)
+        assert got is not None and abs(float(np.mean(got[:, 2])) - b["size"][2]) < 0.0015
         tried += 1
     assert tried >= 2
 
@@ -760,7 +770,7 @@ def test_a_plain_book_end_to_end_with_a_taller_one_is_laid_on_its_excused_end():
     # 30 mm one of its tone. The right image's candidate closes its end at the seam where
     # its long sides' edges end, 4.4 px off and askew; the left image shows no edge there
     # at all. The pair as it is tilts, and the fit that must lie on that end misses it:
-    # lost. Fitted with that end excused (stereo.pool_transfer_excuse), it is the book.
+    # lost. Fitted with that end excused (stereo.pool_transfer_excuse_px), it is the book.
     sc, r = dataset_scene("table2", 1, 17)
     book = r.truth["books"][1]
     assert book["cover"] == "plain"
@@ -768,7 +778,7 @@ def test_a_plain_book_end_to_end_with_a_taller_one_is_laid_on_its_excused_end():
     assert len(found) == 1 and found[0].source == "one image"
     assert np.abs(found[0].pose.center - book["center"]).max() < 0.006  # m, on each axis
     assert abs(found[0].pose.size[2] - book["size"][2]) < 0.004  # m: the height
-    assert _near_book(sc, r, book, ["stereo.pool_transfer_excuse=false"]) == []
+    assert _near_book(sc, r, book, ["stereo.pool_transfer_excuse_px=0"]) == []
 
 
 def test_a_late_candidate_with_a_side_unseen_is_a_book_only_as_the_fit_makes_it():

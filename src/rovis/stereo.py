@@ -141,11 +141,13 @@ class StereoConfig:
     # so may the other image show a side along the epipolar lines short as well
     # (find_in_other_view's along_short)
     pool_transfer_fit: bool = True
-    # ...and where that fit misses its own image's unseen side (placed where its
-    # neighbours' edges end, a few pixels off at a seam) and the pair as it is makes no
-    # book, the same fit with that side excused from the check (pipeline._transferred_fit's
-    # excuse_own): Table II's plain book beside a taller one of its tone, end to end
-    pool_transfer_excuse: bool = True
+    # ...and where that fit missed its own image's unseen side (placed where its
+    # neighbours' edges end, a few pixels off and askew at a seam) and no book came of the
+    # candidate, once every candidate is tried the same fit with that side excused up to
+    # this many pixels (pipeline._transferred_fit's excuse_px; 0: never): the Table II
+    # renders' plain book end to end with a taller one of its tone. Not for a candidate
+    # only the strict fit makes a book of (the late pool's, the loose look's)
+    pool_transfer_excuse_px: float = 5.0
     # Where a quarter or more of a cover found before the extent step lies under no cover
     # after it (a pool pair that was two touching books, cut back to one), the pool is
     # looked at again: the other book's pair had given way to the union
