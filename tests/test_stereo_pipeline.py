@@ -577,9 +577,8 @@ def test_the_transferred_fit_may_excuse_its_own_images_unseen_side(scene):
         other = replace(pair, left=askew(_sides_moved(src, {end: 2.0}), end))
         assert _transferred_fit(rig, other, "right", unseen, plane, 1.0, excuse_px=5.0) is None
         # found in the right image instead, looked for in the left: the same
-        swapped = Pair(_sides_moved(src, {unseen: 6.0}), askew(_sides_moved(dst, {end: 2.0}),
-                                                               unseen),
-                       1.0, 0.0, transferred="right")
+        right = askew(_sides_moved(dst, {end: 2.0}), unseen)
+        swapped = Pair(_sides_moved(src, {unseen: 6.0}), right, 1.0, 0.0, transferred="right")
         assert _transferred_fit(rig, swapped, "left", unseen, plane, 1.0) is None
         got = _transferred_fit(rig, swapped, "left", unseen, plane, 1.0, excuse_px=5.0)
         assert got is not None and abs(float(np.mean(got[:, 2])) - b["size"][2]) < 0.0015
@@ -768,9 +767,9 @@ def test_the_late_candidates_are_looked_for_in_the_other_image_too():
 def test_a_plain_book_end_to_end_with_a_taller_one_is_laid_on_its_excused_end():
     # Table II's scene 17 (30 lx): the 233 × 102 × 23 mm plain book end to end with the
     # 30 mm one of its tone. The right image's candidate closes its end at the seam where
-    # its long sides' edges end, 4.4 px off and askew; the left image shows no edge there
-    # at all. The pair as it is tilts, and the fit that must lie on that end misses it:
-    # lost. Fitted with that end excused (stereo.pool_transfer_excuse_px), it is the book.
+    # its long sides' edges end, askew; the left image shows little edge there. The pair
+    # as it is tilts, and the fit that must lie on that end misses it by 4.4 px: lost.
+    # Fitted with that end excused (stereo.pool_transfer_excuse_px), it is the book.
     sc, r = dataset_scene("table2", 1, 17)
     book = r.truth["books"][1]
     assert book["cover"] == "plain"
