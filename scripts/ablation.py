@@ -87,6 +87,8 @@ STEPS: list[tuple[str, list[str]]] = [
     ("a side on a line of print short of a taller book in front", ["facing.under_print_px=0"]),
     ("a pool pair reaching over a taller pair's footprint gives way to it",
      ["stereo.pool_taller_share=1"]),
+    ("a small cover between books of other heights taken by its print",
+     ["stereo.small_open_between=false"]),
 ]
 
 

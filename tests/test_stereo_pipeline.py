@@ -811,6 +811,37 @@ def test_desk_between_found_books_is_no_book(monkeypatch):
     assert near_gap() == 0  # which the unskew step drops too)
 
 
+def test_a_small_cover_between_books_of_other_heights_is_a_book_by_its_print():
+    # build/t1d's scene 72 (rovis synth --protocol table1 --seed 4): a light 156 x 109 x 9
+    # mm cover at the far side of the workspace, between a dark book 19 mm high and a
+    # light one 55 mm high, two of its sides on their outlines. Only the small candidates
+    # with sides unseen hold it (about 3700 px² in the left image); the pair makes a flat
+    # cover, which the desk-between-books rule turned down. Its print matches between the
+    # images at its height (NCC 0.99, the desk 0.86-0.89) and neither neighbour stands
+    # there: a book of its own (stereo.small_open_between).
+    sc, r = dataset_scene("table1", 4, 72)
+    book = r.truth["books"][0]
+    found = _near_book(sc, r, book, [])
+    assert len(found) == 1 and found[0].source == "candidates"
+    assert np.abs(found[0].pose.center - book["center"]).max() < 0.008  # m, on each axis
+    assert abs(found[0].pose.size[2] - book["size"][2]) < 0.003  # m: the height
+    np.testing.assert_allclose(sorted(found[0].pose.size[:2]), sorted(book["size"][:2]),
+                               atol=0.008)
+    assert _near_book(sc, r, book, ["stereo.small_open_between=false"]) == []
+
+
+def test_a_piece_flush_with_a_book_of_its_height_stays_the_desk_between_books():
+    # Table I's scene 8 (rovis synth --protocol table1 --seed 1): a small candidate beside
+    # a 21 mm photo cover, two sides on found books' outlines, its print matching at 21-26
+    # mm. A book of that height holds one of its sides: a piece of it, not a book of its
+    # own. Without that condition (stereo.small_open_apart=0) it is a false book.
+    sc, r = dataset_scene("table1", 1, 8)
+    res = Detector(sc.rig).detect(r.left, r.right)
+    assert _false_books(res, r.truth) == []
+    loose = with_settings(DetectConfig(), ["stereo.small_open_apart=0"])
+    assert len(_false_books(Detector(sc.rig, loose).detect(r.left, r.right), r.truth)) == 1
+
+
 def test_sides_on_found_books():
     from rovis.pipeline import _sides_on
 
