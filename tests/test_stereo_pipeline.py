@@ -817,10 +817,12 @@ def test_a_small_cover_between_books_of_other_heights_is_a_book_by_its_print():
     # light one 55 mm high, two of its sides on their outlines. Only the small candidates
     # with sides unseen hold it (about 3700 px² in the left image); the pair makes a flat
     # cover, which the desk-between-books rule turned down. Its print matches between the
-    # images at its height (NCC 0.99, the desk 0.86-0.89) and neither neighbour stands
-    # there: a book of its own (stereo.small_open_between).
+    # images at its height (NCC 0.99, the desk 0.86-0.89: the desk is under a pixel of
+    # disparity below a 9 mm cover) and neither neighbour stands there: a book of its own
+    # (stereo.small_open_between).
     sc, r = dataset_scene("table1", 4, 72)
     book = r.truth["books"][0]
+    assert book["cover"] == "light" and abs(book["size"][2] - 0.009) < 0.001
     found = _near_book(sc, r, book, [])
     assert len(found) == 1 and found[0].source == "candidates"
     assert np.abs(found[0].pose.center - book["center"]).max() < 0.008  # m, on each axis
@@ -828,6 +830,8 @@ def test_a_small_cover_between_books_of_other_heights_is_a_book_by_its_print():
     np.testing.assert_allclose(sorted(found[0].pose.size[:2]), sorted(book["size"][:2]),
                                atol=0.008)
     assert _near_book(sc, r, book, ["stereo.small_open_between=false"]) == []
+    # its print must beat the desk's NCC by a clear margin (0.10-0.13 here: not 0.2)
+    assert _near_book(sc, r, book, ["stereo.small_open_print_gap=0.2"]) == []
 
 
 def test_a_piece_flush_with_a_book_of_its_height_stays_the_desk_between_books():
@@ -839,7 +843,9 @@ def test_a_piece_flush_with_a_book_of_its_height_stays_the_desk_between_books():
     res = Detector(sc.rig).detect(r.left, r.right)
     assert _false_books(res, r.truth) == []
     loose = with_settings(DetectConfig(), ["stereo.small_open_apart=0"])
-    assert len(_false_books(Detector(sc.rig, loose).detect(r.left, r.right), r.truth)) == 1
+    false = _false_books(Detector(sc.rig, loose).detect(r.left, r.right), r.truth)
+    assert len(false) == 1 and false[0].source == "candidates"
+    assert 0.018 < false[0].pose.size[2] < 0.025  # m: at the photo cover's height
 
 
 def test_sides_on_found_books():

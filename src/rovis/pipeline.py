@@ -1029,8 +1029,9 @@ class Detector:
         partner). The late and small_open passes' books must reproject within
         ``stereo.late_max_reprojection_px``; a small_open book must not be the desk between
         books found (two sides on their outlines), unless its print places it at its own
-        height and no book whose outline holds one of its sides stands at that height
-        (``stereo.small_open_between``), and is marked ``Pair.small_open``
+        height and no book whose outline holds one of its sides stands within
+        ``stereo.small_open_apart`` of it (``stereo.small_open_between``), and is marked
+        ``Pair.small_open``
         (:meth:`_without_small`'s own bound).
 
         The pairs of Hough quads that roughly make a flat, book-sized rectangle
@@ -1352,6 +1353,38 @@ class Detector:
             return _in_eq1_order(Pair(left[a], right[a], quality, float(pp.error_px[a]),
                                       source="candidates", small_open=extra == "small_open"))
 
+        def own_between(book: BookDetection) -> bool:
+            # A small cover between books found, its sides on theirs, is a book of its own
+            # where its print matches between the images at its height, clearly better
+            # than on the desk, and every book whose outline holds one of its sides
+            # stands higher or lower: a piece of that book (cut at a band of its print,
+            # flush with it) stands at its height, and the desk shows its own grain. The
+            # sweep runs over the whole height range: a taller neighbour's print inside
+            # the quad, matching best at its own height, refuses it too.
+            sc = cfg.stereo
+            if not sc.small_open_between or texture is None:
+                return False
+            P = book.corners_world
+            height = float(book.pose.size[2])
+            tol = max(sc.small_open_print_tol, 0.25 * height)
+            top = max(cfg.sweep.max_height, height + 2 * tol)
+            sweep = sweep_heights(texture["left"], texture["right"], Q["left"], Q["right"],
+                                  geometry.project(Q["left"], P), desk_plane,
+                                  np.arange(0.0, top + 1e-9, cfg.sweep.step),
+                                  inset=cfg.sweep.inset, max_samples=cfg.sweep.max_samples)
+            if (sweep is None or abs(sweep.best_height - height) > tol
+                    or sweep.best_ncc < sc.small_open_print_ncc
+                    or sweep.best_ncc - sweep.ncc[0] < sc.small_open_print_gap):  # [0]: desk
+                return False
+            books = found + out
+            for cam in Q:
+                quad = geometry.project(Q[cam], P)
+                for (_, other), outline in zip(books, _outlines(Q[cam], cam, books, up)):
+                    if (abs(float(other.pose.size[2]) - height) < sc.small_open_apart
+                            and _sides_on(quad, [outline]).any()):
+                        return False
+            return True
+
         def kept_back(book: BookDetection) -> bool:
             # a book the pass does not take though the pose checks pass
             if late and book.reprojection_error_px > cfg.stereo.late_max_reprojection_px:
@@ -1360,35 +1393,6 @@ class Detector:
             # own there (stereo.small_open_between)
             return extra == "small_open" and between_books(book.corners_world) \
                 and not own_between(book)
-
-        def own_between(book: BookDetection) -> bool:
-            # A small cover between books found, its sides on theirs, is a book of its own
-            # where its print matches between the images at its height, clearly better
-            # than on the desk, and every book whose outline holds one of its sides
-            # stands higher or lower: a piece of that book (cut at a band of its print,
-            # flush with it) stands at its height, and the desk shows its own grain
-            sc = cfg.stereo
-            if not sc.small_open_between or texture is None:
-                return False
-            P = book.corners_world
-            height = float(book.pose.size[2])
-            tol = max(sc.small_open_print_tol, 0.25 * height)
-            sweep = sweep_heights(texture["left"], texture["right"], Q["left"], Q["right"],
-                                  geometry.project(Q["left"], P), desk_plane,
-                                  np.arange(0.0, height + 2 * tol + 1e-9, cfg.sweep.step),
-                                  inset=cfg.sweep.inset, max_samples=cfg.sweep.max_samples)
-            if (sweep is None or abs(sweep.best_height - height) > tol
-                    or sweep.best_ncc < sc.small_open_print_ncc
-                    or sweep.best_ncc - sweep.ncc[0] < sc.small_open_print_gap):
-                return False
-            for cam in Q:
-                quad = geometry.project(Q[cam], P)
-                for (_, other), outline in zip(found + out,
-                                               _outlines(Q[cam], cam, found + out, up)):
-                    if (abs(float(other.pose.size[2]) - height) < sc.small_open_apart
-                            and _sides_on(quad, [outline]).any()):
-                        return False
-            return True
 
         considered = np.zeros(len(i), bool)  # the pairs asked of consider so far
         hough_height: dict[int, float] = {}  # each pair's, on its Hough corners (gives_way)

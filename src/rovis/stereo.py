@@ -195,10 +195,11 @@ class StereoConfig:
     # narrower)
     small_open_min_side: float = 0.075
     # ...but one between books found is taken where it is a book of its own there
-    # (small_open_between; Detector._from_pool): its print matches between the images
-    # best within small_open_print_tol (metres) or a quarter of its height of that
-    # height, with an NCC of at least small_open_print_ncc and small_open_print_gap above
-    # the desk's, and each book whose outline holds one of its sides stands at least
+    # (small_open_between; Detector._from_pool): its print, swept from the desk up to
+    # SweepConfig.max_height, matches between the images best within the larger of
+    # small_open_print_tol (metres) and a quarter of its height of that height, with an
+    # NCC of at least small_open_print_ncc and at least small_open_print_gap above the
+    # desk's, and each book whose outline holds one of its sides stands at least
     # small_open_apart (metres) higher or lower (a piece of that book cut at a band of
     # its print, flush with it, stands at its height)
     small_open_between: bool = True
