@@ -1031,8 +1031,7 @@ class Detector:
         books found (two sides on their outlines), unless its print places it at its own
         height and no book whose outline holds one of its sides stands within
         ``stereo.small_open_apart`` of it (``stereo.small_open_between``), and is marked
-        ``Pair.small_open``
-        (:meth:`_without_small`'s own bound).
+        ``Pair.small_open`` (:meth:`_without_small`'s own bound).
 
         The pairs of Hough quads that roughly make a flat, book-sized rectangle
         (:func:`rovis.stereo.pool_pairs`) are refined in both images (Hough corners are
@@ -1366,24 +1365,22 @@ class Detector:
                 return False
             P = book.corners_world
             height = float(book.pose.size[2])
-            tol = max(sc.small_open_print_tol, 0.25 * height)
-            top = max(cfg.sweep.max_height, height + 2 * tol)
-            sweep = sweep_heights(texture["left"], texture["right"], Q["left"], Q["right"],
-                                  geometry.project(Q["left"], P), desk_plane,
-                                  np.arange(0.0, top + 1e-9, cfg.sweep.step),
-                                  inset=cfg.sweep.inset, max_samples=cfg.sweep.max_samples)
-            if (sweep is None or abs(sweep.best_height - height) > tol
-                    or sweep.best_ncc < sc.small_open_print_ncc
-                    or sweep.best_ncc - sweep.ncc[0] < sc.small_open_print_gap):  # [0]: desk
-                return False
-            books = found + out
+            books = found + out  # (the neighbours first: no sweep where one refuses it)
             for cam in Q:
                 quad = geometry.project(Q[cam], P)
                 for (_, other), outline in zip(books, _outlines(Q[cam], cam, books, up)):
                     if (abs(float(other.pose.size[2]) - height) < sc.small_open_apart
                             and _sides_on(quad, [outline]).any()):
                         return False
-            return True
+            tol = max(sc.small_open_print_tol, 0.25 * height)
+            top = max(cfg.sweep.max_height, height + 2 * tol)
+            sweep = sweep_heights(texture["left"], texture["right"], Q["left"], Q["right"],
+                                  geometry.project(Q["left"], P), desk_plane,
+                                  np.arange(0.0, top + 1e-9, cfg.sweep.step),
+                                  inset=cfg.sweep.inset, max_samples=cfg.sweep.max_samples)
+            return not (sweep is None or abs(sweep.best_height - height) > tol
+                        or sweep.best_ncc < sc.small_open_print_ncc
+                        or sweep.best_ncc - sweep.ncc[0] < sc.small_open_print_gap)  # [0]: desk
 
         def kept_back(book: BookDetection) -> bool:
             # a book the pass does not take though the pose checks pass
